@@ -1,0 +1,214 @@
+//! The pinhole camera model and the stereo calibration the vision pipeline reads.
+//!
+//! Camera frame: `x` right, `y` down, `z` along the optical axis (into the scene). Pixel
+//! `(u, v)`: `u` along image rows, `v` down the image, pixel centres at integer coordinates,
+//! so `u = fx * x / z + cx`. The stereo rig's `cam` frame is the left camera's.
+
+use nalgebra::{Isometry3, Point2, Point3, Vector3};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// One calibrated pinhole camera (no lens distortion).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PinholeCamera {
+    pub width: u32,
+    pub height: u32,
+    /// Focal lengths in pixels.
+    pub fx: f64,
+    pub fy: f64,
+    /// Principal point in pixels.
+    pub cx: f64,
+    pub cy: f64,
+    /// Pose of the camera in the world (maps camera coordinates to world coordinates).
+    #[serde(with = "crate::pose::iso_serde")]
+    pub world_from_cam: Isometry3<f64>,
+}
+
+impl PinholeCamera {
+    /// A camera at `position` looking at `target`, with `up` appearing up in the image.
+    pub fn looking_at(
+        (width, height): (u32, u32),
+        focal_px: f64,
+        principal_point: [f64; 2],
+        position: Point3<f64>,
+        target: Point3<f64>,
+        up: Vector3<f64>,
+    ) -> Self {
+        let z = (target - position).normalize();
+        let x = z.cross(&up).normalize(); // image right
+        let y = z.cross(&x); // image down
+        let rot = nalgebra::Rotation3::from_basis_unchecked(&[x, y, z]);
+        let world_from_cam = Isometry3::from_parts(
+            position.coords.into(),
+            nalgebra::UnitQuaternion::from_rotation_matrix(&rot),
+        );
+        PinholeCamera {
+            width,
+            height,
+            fx: focal_px,
+            fy: focal_px,
+            cx: principal_point[0],
+            cy: principal_point[1],
+            world_from_cam,
+        }
+    }
+
+    pub fn cam_from_world(&self) -> Isometry3<f64> {
+        self.world_from_cam.inverse()
+    }
+
+    /// Projects a point given in this camera's frame; `None` behind the camera.
+    pub fn project_cam(&self, p: &Point3<f64>) -> Option<Point2<f64>> {
+        (p.z > 1e-9)
+            .then(|| Point2::new(self.fx * p.x / p.z + self.cx, self.fy * p.y / p.z + self.cy))
+    }
+
+    /// Projects a world point to pixel coordinates; `None` behind the camera.
+    pub fn project_world(&self, p: &Point3<f64>) -> Option<Point2<f64>> {
+        self.project_cam(&self.world_from_cam.inverse_transform_point(p))
+    }
+
+    /// Direction (in the camera frame, with `z = 1`) of the ray through pixel `(u, v)`.
+    pub fn ray_cam(&self, u: f64, v: f64) -> Vector3<f64> {
+        Vector3::new((u - self.cx) / self.fx, (v - self.cy) / self.fy, 1.0)
+    }
+
+    /// Origin and unit direction, in the world, of the ray through pixel `(u, v)`.
+    pub fn ray_world(&self, u: f64, v: f64) -> (Point3<f64>, Vector3<f64>) {
+        let dir = self.world_from_cam.rotation * self.ray_cam(u, v).normalize();
+        (self.world_from_cam.translation.vector.into(), dir)
+    }
+
+    /// The camera centre in the world.
+    pub fn centre(&self) -> Point3<f64> {
+        self.world_from_cam.translation.vector.into()
+    }
+}
+
+/// The two calibrated cameras of the stereo rig. `cam` (the frame the vision pipeline reports
+/// in) is the left camera's frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StereoCalibration {
+    pub left: PinholeCamera,
+    pub right: PinholeCamera,
+}
+
+/// Why a calibration could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum CalibrationError {
+    #[error("{path}: {source}")]
+    Io {
+        path: String,
+        source: std::io::Error,
+    },
+    #[error("{path}: line {line}, column {column}: {message}")]
+    Parse {
+        path: String,
+        line: usize,
+        column: usize,
+        message: String,
+    },
+}
+
+impl StereoCalibration {
+    /// Maps left-camera (`cam`) coordinates to right-camera coordinates.
+    pub fn right_from_left(&self) -> Isometry3<f64> {
+        self.right.cam_from_world() * self.left.world_from_cam
+    }
+
+    /// Distance between the two camera centres, metres.
+    pub fn baseline(&self) -> f64 {
+        (self.right.centre() - self.left.centre()).norm()
+    }
+
+    /// Reads a calibration file: either a bare `{left, right}` object or a `scene.json`
+    /// written by `marvin render`, whose `calibration` member is read.
+    pub fn load(path: &Path) -> Result<Self, CalibrationError> {
+        let shown = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|source| CalibrationError::Io {
+            path: shown.clone(),
+            source,
+        })?;
+        Self::from_json(&text).map_err(|e| CalibrationError::Parse {
+            path: shown,
+            line: e.line(),
+            column: e.column(),
+            message: e.to_string(),
+        })
+    }
+
+    /// Parses a bare calibration or a scene file's `calibration` member.
+    pub fn from_json(text: &str) -> Result<Self, serde_json::Error> {
+        #[derive(Deserialize)]
+        struct SceneFile {
+            calibration: StereoCalibration,
+        }
+        // Decide by shape rather than with an untagged enum, whose errors hide the real cause.
+        let value: serde_json::Value = serde_json::from_str(text)?;
+        if value.get("calibration").is_some() {
+            Ok(serde_json::from_value::<SceneFile>(value)?.calibration)
+        } else {
+            serde_json::from_value(value)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn camera() -> PinholeCamera {
+        PinholeCamera::looking_at(
+            (512, 512),
+            1000.0,
+            [255.5, 255.5],
+            Point3::new(-0.1, -0.7, 0.6),
+            Point3::origin(),
+            Vector3::z(),
+        )
+    }
+
+    #[test]
+    fn target_projects_to_principal_point() {
+        let cam = camera();
+        let p = cam.project_world(&Point3::origin()).unwrap();
+        assert!((p - Point2::new(255.5, 255.5)).norm() < 1e-9);
+    }
+
+    #[test]
+    fn world_up_appears_up_and_right_appears_right() {
+        let cam = camera();
+        let up = cam.project_world(&Point3::new(0.0, 0.0, 0.05)).unwrap();
+        assert!(up.y < 255.5, "world up should move up the image: {up}");
+        let right = cam.project_world(&Point3::new(0.05, 0.0, 0.0)).unwrap();
+        assert!(
+            right.x > 255.5,
+            "world +x seen from -y should be image right: {right}"
+        );
+    }
+
+    #[test]
+    fn ray_through_a_projection_passes_through_the_point() {
+        let cam = camera();
+        let p = Point3::new(0.03, 0.07, 0.02);
+        let px = cam.project_world(&p).unwrap();
+        let (o, d) = cam.ray_world(px.x, px.y);
+        let to_p = p - o;
+        assert!((to_p - d * to_p.dot(&d)).norm() < 1e-9);
+    }
+
+    #[test]
+    fn calibration_round_trips_through_json() {
+        let calib = StereoCalibration {
+            left: camera(),
+            right: camera(),
+        };
+        let text = serde_json::to_string(&calib).unwrap();
+        assert_eq!(StereoCalibration::from_json(&text).unwrap(), calib);
+        let scene = format!("{{\"calibration\": {text}, \"objects\": []}}");
+        assert_eq!(StereoCalibration::from_json(&scene).unwrap(), calib);
+        assert!(StereoCalibration::from_json("{\"left\": 3}").is_err());
+    }
+}

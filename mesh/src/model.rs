@@ -1,0 +1,156 @@
+//! A library model: the TOML a person writes ([`ModelSpec`]) and everything built from it
+//! ([`Model`]).
+//!
+//! Gripper frame of a grasp: origin at the tool centre point between the fingertips, `z` the
+//! approach direction (from the gripper into the object), `y` the axis along which the jaws
+//! close. `opening_mm` is the object's width between the jaws at the grasp.
+
+use crate::extrude::Extrusion;
+use crate::mass::{MassProperties, mass_properties};
+use crate::pose::from_position_rpy_deg;
+use crate::trimesh::TriMesh;
+use crate::wireframe::{FEATURE_ANGLE_DEG, Segment3, feature_edges};
+use nalgebra::{Isometry3, Point2, Point3};
+use serde::Deserialize;
+use std::path::Path;
+
+/// A model file, `mesh/models/<name>.toml`. Lengths in millimetres.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelSpec {
+    pub name: String,
+    #[serde(default)]
+    pub description: String,
+    pub density_kg_m3: f64,
+    /// Diffuse reflectance, 0-1.
+    pub albedo: f64,
+    pub shape: ShapeSpec,
+    #[serde(default)]
+    pub grasps: Vec<GraspSpec>,
+}
+
+/// How a model's solid is given.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum ShapeSpec {
+    /// A simple polygon in the model's `xy` plane extruded symmetrically along `z`.
+    Extrusion {
+        profile_mm: Vec<[f64; 2]>,
+        thickness_mm: f64,
+        /// Checker squares `[nx, ny]` on both caps (rectangular profiles only).
+        checker: Option<[u32; 2]>,
+    },
+    /// A closed Wavefront OBJ mesh, path relative to the model file, coordinates in millimetres.
+    Obj { file: String },
+}
+
+/// A grasp as written: gripper pose in the model frame and the jaw opening.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GraspSpec {
+    pub position_mm: [f64; 3],
+    pub rpy_deg: [f64; 3],
+    pub opening_mm: f64,
+}
+
+/// A grasp position: where the gripper centre goes, in the model frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Grasp {
+    pub model_from_gripper: Isometry3<f64>,
+    /// Object width between the jaws, metres.
+    pub opening: f64,
+}
+
+/// How the physics engine should see the solid.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Collision {
+    /// An exact decomposition: the union of the convex hulls of these point sets.
+    ConvexPieces(Vec<Vec<Point3<f64>>>),
+    /// A non-convex mesh the physics side must decompose itself (approximately).
+    Decompose,
+}
+
+/// A built library model.
+#[derive(Debug, Clone)]
+pub struct Model {
+    pub name: String,
+    pub description: String,
+    pub mesh: TriMesh,
+    pub collision: Collision,
+    pub wireframe: Vec<Segment3>,
+    pub mass: MassProperties,
+    pub grasps: Vec<Grasp>,
+}
+
+const MM: f64 = 1e-3;
+
+impl Model {
+    /// Builds a model; `dir` resolves an OBJ file's relative path.
+    pub fn build(spec: &ModelSpec, dir: &Path) -> Result<Model, String> {
+        if !(0.0..=1.0).contains(&spec.albedo) {
+            return Err(format!("albedo must be within 0-1, got {}", spec.albedo));
+        }
+        if !(spec.density_kg_m3 > 0.0) {
+            return Err(format!(
+                "density_kg_m3 must be positive, got {}",
+                spec.density_kg_m3
+            ));
+        }
+        let albedo = spec.albedo as f32;
+        let (mesh, collision) = match &spec.shape {
+            ShapeSpec::Extrusion {
+                profile_mm,
+                thickness_mm,
+                checker,
+            } => {
+                let profile = profile_mm
+                    .iter()
+                    .map(|&[x, y]| Point2::new(x * MM, y * MM))
+                    .collect();
+                let ext = Extrusion::new(profile, thickness_mm * MM)
+                    .map_err(|e| format!("shape: {e}"))?;
+                let mesh = match checker {
+                    Some(n) => ext
+                        .checker_mesh(*n, albedo)
+                        .map_err(|e| format!("shape.checker: {e}"))?,
+                    None => ext.mesh(albedo),
+                };
+                (mesh, Collision::ConvexPieces(ext.convex_pieces()))
+            }
+            ShapeSpec::Obj { file } => {
+                let path = dir.join(file);
+                let mesh = crate::obj::load(&path, MM, albedo)
+                    .map_err(|e| format!("shape.file {}: {e}", path.display()))?;
+                let collision = if crate::obj::is_convex(&mesh, 1e-9) {
+                    Collision::ConvexPieces(vec![mesh.vertices.clone()])
+                } else {
+                    Collision::Decompose
+                };
+                (mesh, collision)
+            }
+        };
+        let grasps = spec
+            .grasps
+            .iter()
+            .map(|g| Grasp {
+                model_from_gripper: from_position_rpy_deg(g.position_mm.map(|c| c * MM), g.rpy_deg),
+                opening: g.opening_mm * MM,
+            })
+            .collect();
+        Ok(Model {
+            name: spec.name.clone(),
+            description: spec.description.clone(),
+            wireframe: feature_edges(&mesh, FEATURE_ANGLE_DEG),
+            mass: mass_properties(&mesh, spec.density_kg_m3),
+            collision,
+            mesh,
+            grasps,
+        })
+    }
+
+    /// Size of the model's bounding box, metres.
+    pub fn extent(&self) -> nalgebra::Vector3<f64> {
+        let (lo, hi) = self.mesh.bounds().expect("a built model has vertices");
+        hi - lo
+    }
+}

@@ -1,0 +1,145 @@
+//! The 3D wireframe the model matcher uses: straight feature edges, where two faces meet at a
+//! dihedral angle of at least a threshold (20 deg by default) or a face has no neighbour.
+//! Collinear pieces that meet end to end are merged into one segment.
+
+use crate::trimesh::TriMesh;
+use nalgebra::{Point3, Vector3};
+use std::collections::HashMap;
+
+/// Default minimum angle between the normals of adjacent faces for their edge to be a feature.
+pub const FEATURE_ANGLE_DEG: f64 = 20.0;
+
+/// A straight 3D line segment.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Segment3 {
+    pub a: Point3<f64>,
+    pub b: Point3<f64>,
+}
+
+impl Segment3 {
+    pub fn length(&self) -> f64 {
+        (self.b - self.a).norm()
+    }
+
+    pub fn direction(&self) -> Vector3<f64> {
+        (self.b - self.a).normalize()
+    }
+
+    /// The point at fraction `t` from `a` to `b`.
+    pub fn at(&self, t: f64) -> Point3<f64> {
+        self.a + (self.b - self.a) * t
+    }
+}
+
+/// Feature edges of `mesh` (which should be welded: shared corners share an index).
+pub fn feature_edges(mesh: &TriMesh, min_angle_deg: f64) -> Vec<Segment3> {
+    let mut faces_of_edge: HashMap<(u32, u32), Vec<usize>> = HashMap::new();
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (tri[k], tri[(k + 1) % 3]);
+            faces_of_edge
+                .entry((a.min(b), a.max(b)))
+                .or_default()
+                .push(t);
+        }
+    }
+    let cos_min = min_angle_deg.to_radians().cos();
+    let mut edges: Vec<(u32, u32)> = faces_of_edge
+        .iter()
+        .filter(|(_, faces)| match faces.as_slice() {
+            [f, g] => mesh.face_normal(*f).dot(&mesh.face_normal(*g)) <= cos_min,
+            _ => true, // a border or a non-manifold edge is always a feature
+        })
+        .map(|(&e, _)| e)
+        .collect();
+    edges.sort_unstable(); // HashMap order is random; the wireframe must not be
+    merge_collinear(mesh, &edges)
+}
+
+/// Joins feature edges that continue each other in a straight line through a vertex that
+/// no other feature edge touches.
+fn merge_collinear(mesh: &TriMesh, edges: &[(u32, u32)]) -> Vec<Segment3> {
+    let mut at_vertex: HashMap<u32, Vec<usize>> = HashMap::new();
+    for (i, &(a, b)) in edges.iter().enumerate() {
+        at_vertex.entry(a).or_default().push(i);
+        at_vertex.entry(b).or_default().push(i);
+    }
+    let p = |v: u32| mesh.vertices[v as usize];
+    let mut used = vec![false; edges.len()];
+    let mut out = Vec::new();
+    for start in 0..edges.len() {
+        if used[start] {
+            continue;
+        }
+        used[start] = true;
+        let (a, b) = edges[start];
+        let dir = (p(b) - p(a)).normalize();
+        let mut ends = [a, b];
+        for (end, sign) in [(1usize, 1.0), (0usize, -1.0)] {
+            // Walk away from the segment through vertices of degree two.
+            while let [e1, e2] = at_vertex[&ends[end]].as_slice() {
+                let next = if used[*e1] { *e2 } else { *e1 };
+                if used[next] {
+                    break;
+                }
+                let (x, y) = edges[next];
+                let far = if x == ends[end] { y } else { x };
+                let step = (p(far) - p(ends[end])).normalize() * sign;
+                if step.dot(&dir) < 1.0 - 1e-9 {
+                    break;
+                }
+                used[next] = true;
+                ends[end] = far;
+            }
+        }
+        out.push(Segment3 {
+            a: p(ends[0]),
+            b: p(ends[1]),
+        });
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::extrude::Extrusion;
+    use nalgebra::Point2;
+
+    #[test]
+    fn a_box_has_twelve_feature_edges_of_the_right_lengths() {
+        let m = TriMesh::cuboid(Vector3::new(0.03, 0.02, 0.01), 1.0);
+        let edges = feature_edges(&m, FEATURE_ANGLE_DEG);
+        assert_eq!(edges.len(), 12);
+        let total: f64 = edges.iter().map(Segment3::length).sum();
+        assert!((total - 4.0 * (0.06 + 0.04 + 0.02)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn checker_plate_edges_merge_into_twelve() {
+        let sq = [(-0.03, -0.02), (0.03, -0.02), (0.03, 0.02), (-0.03, 0.02)];
+        let plate = Extrusion::new(sq.map(|(x, y)| Point2::new(x, y)).to_vec(), 0.004).unwrap();
+        let m = plate.checker_mesh([4, 3], 0.9).unwrap();
+        assert_eq!(feature_edges(&m, FEATURE_ANGLE_DEG).len(), 12);
+    }
+
+    #[test]
+    fn shallow_folds_are_not_features() {
+        // A prism whose profile has a 10 deg bend: the bend's vertical edge is no feature.
+        let bend = 10f64.to_radians();
+        let prof = vec![
+            Point2::new(0.0, 0.0),
+            Point2::new(0.05, 0.0),
+            Point2::new(0.05 + 0.05 * bend.cos(), 0.05 * bend.sin()),
+            Point2::new(0.05 + 0.05 * bend.cos(), 0.05 * bend.sin() + 0.02),
+            Point2::new(0.0, 0.02),
+        ];
+        let m = Extrusion::new(prof, 0.01).unwrap().mesh(1.0);
+        let edges = feature_edges(&m, FEATURE_ANGLE_DEG);
+        let vertical = edges
+            .iter()
+            .filter(|s| s.direction().z.abs() > 0.99)
+            .count();
+        assert_eq!(vertical, 4, "5 profile corners, one of them too shallow");
+    }
+}
