@@ -1,0 +1,145 @@
+//! The rapier world of the cell: fixed boxes, dynamic objects with the mass properties their
+//! models give, and settling until everything is at rest.
+
+use crate::convert;
+use crate::scene::StaticBox;
+use crate::world::PhysicsSpec;
+use mesh::Model;
+use mesh::model::Collision;
+use nalgebra::Isometry3;
+use rapier3d::prelude::*;
+
+/// Speeds under which a body counts as at rest (m/s and rad/s).
+const REST_LINEAR: f32 = 2e-3;
+const REST_ANGULAR: f32 = 2e-2;
+/// How long every body must stay under those speeds.
+const REST_HOLD_S: f64 = 0.25;
+
+/// The rapier side of the cell.
+pub struct Cell {
+    pub world: PhysicsWorld,
+    pub objects: Vec<RigidBodyHandle>,
+    friction: f32,
+}
+
+/// How settling went.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct SettleReport {
+    pub simulated_s: f64,
+    pub steps: u32,
+    /// True when every object stayed at rest for a while before the time limit.
+    pub at_rest: bool,
+    pub max_linear_speed: f64,
+    pub max_angular_speed: f64,
+}
+
+impl Cell {
+    pub fn new(spec: &PhysicsSpec, statics: &[StaticBox]) -> Cell {
+        let mut world = PhysicsWorld::new();
+        world.gravity = Vector::new(0.0, 0.0, -9.81);
+        world.integration_parameters.dt = spec.timestep_s as f32;
+        // Keep resting penetration well under a millimetre.
+        world.integration_parameters.normalized_allowed_linear_error = 2e-4;
+        world.integration_parameters.num_solver_iterations = 8;
+        let friction = spec.friction as f32;
+        for b in statics {
+            let h = convert::vector(&b.half_extents);
+            world.insert(
+                RigidBodyBuilder::fixed().pose(convert::pose(&b.world_from_box)),
+                ColliderBuilder::cuboid(h.x, h.y, h.z).friction(friction),
+            );
+        }
+        Cell {
+            world,
+            objects: Vec::new(),
+            friction,
+        }
+    }
+
+    /// Adds a dynamic body for `model` at `world_from_model`; the body frame is the model frame.
+    pub fn add_object(
+        &mut self,
+        model: &Model,
+        world_from_model: &Isometry3<f64>,
+    ) -> RigidBodyHandle {
+        let mp = &model.mass;
+        let mass = MassProperties::with_inertia_matrix(
+            convert::point(&mp.centre_of_mass),
+            mp.mass as f32,
+            convert::matrix(&mp.inertia),
+        );
+        let body = RigidBodyBuilder::dynamic()
+            .pose(convert::pose(world_from_model))
+            .additional_mass_properties(mass)
+            .ccd_enabled(true);
+        let collider = collider_for(model)
+            .density(0.0)
+            .friction(self.friction)
+            .restitution(0.05);
+        let (handle, _) = self.world.insert(body, collider);
+        self.objects.push(handle);
+        handle
+    }
+
+    pub fn pose(&self, body: RigidBodyHandle) -> Isometry3<f64> {
+        convert::iso(self.world.bodies[body].position())
+    }
+
+    /// Steps until every object has been at rest for a while, or `limit_s` of simulated time.
+    pub fn settle(&mut self, limit_s: f64) -> SettleReport {
+        let dt = self.world.integration_parameters.dt as f64;
+        let (mut steps, mut calm_s) = (0u32, 0.0);
+        loop {
+            self.world.step();
+            steps += 1;
+            let (lin, ang) = self.max_speeds();
+            calm_s = if lin < REST_LINEAR && ang < REST_ANGULAR {
+                calm_s + dt
+            } else {
+                0.0
+            };
+            let simulated_s = steps as f64 * dt;
+            if calm_s >= REST_HOLD_S || simulated_s >= limit_s {
+                return SettleReport {
+                    simulated_s,
+                    steps,
+                    at_rest: calm_s >= REST_HOLD_S,
+                    max_linear_speed: lin as f64,
+                    max_angular_speed: ang as f64,
+                };
+            }
+        }
+    }
+
+    fn max_speeds(&self) -> (f32, f32) {
+        self.objects.iter().fold((0.0f32, 0.0f32), |(l, a), &h| {
+            let b = &self.world.bodies[h];
+            (l.max(b.linvel().length()), a.max(b.angvel().length()))
+        })
+    }
+}
+
+/// The collider of a model: its exact convex pieces, or an approximate decomposition.
+fn collider_for(model: &Model) -> ColliderBuilder {
+    match &model.collision {
+        Collision::ConvexPieces(pieces) => {
+            let shapes: Vec<(Pose, SharedShape)> = pieces
+                .iter()
+                .map(|pts| {
+                    let pts: Vec<Vector> = pts.iter().map(convert::point).collect();
+                    let hull = SharedShape::convex_hull(&pts).expect("model pieces are solid");
+                    (Pose::IDENTITY, hull)
+                })
+                .collect();
+            if shapes.len() == 1 {
+                ColliderBuilder::new(shapes.into_iter().next().expect("one piece").1)
+            } else {
+                ColliderBuilder::compound(shapes)
+            }
+        }
+        Collision::Decompose => {
+            let pts: Vec<Vector> = model.mesh.vertices.iter().map(convert::point).collect();
+            ColliderBuilder::convex_decomposition(&pts, &model.mesh.triangles)
+        }
+    }
+}

@@ -1,0 +1,51 @@
+//! `scene.json`: the calibration the vision pipeline reads, and the ground truth that only
+//! evaluation code may read, written beside the rendered images.
+
+use crate::scene::{Scenario, Scene};
+use mesh::StereoCalibration;
+use nalgebra::Isometry3;
+use serde::{Deserialize, Serialize};
+
+/// Depth maps are 16-bit PNGs in units of this many metres (0.1 mm); 0 means no surface.
+pub const DEPTH_UNIT_M: f64 = 1e-4;
+
+/// The contents of `scene.json`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct SceneRecord {
+    pub world: String,
+    pub seed: u64,
+    /// What the vision pipeline may read: both cameras, `world_from_cam` each.
+    pub calibration: StereoCalibration,
+    /// Ground truth, for evaluation only.
+    pub objects: Vec<ObjectRecord>,
+    pub depth_unit_m: f64,
+    pub id_map: String,
+    pub settle: crate::physics::SettleReport,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct ObjectRecord {
+    /// The value this object has in the id maps.
+    pub id: u32,
+    pub model: String,
+    #[serde(with = "mesh::pose::iso_serde")]
+    pub world_from_model: Isometry3<f64>,
+}
+
+impl SceneRecord {
+    pub fn new(scn: &Scenario, scene: &Scene, calibration: &StereoCalibration) -> SceneRecord {
+        SceneRecord {
+            world: scn.path.display().to_string(),
+            seed: scene.seed,
+            calibration: calibration.clone(),
+            objects: scene
+                .objects
+                .iter()
+                .map(|o| ObjectRecord { id: o.id, model: o.model.clone(), world_from_model: o.world_from_model })
+                .collect(),
+            depth_unit_m: DEPTH_UNIT_M,
+            id_map: "16-bit PNG; each pixel holds the id of the object seen at its centre, 0 for the table, floor, bins or nothing".into(),
+            settle: scene.settle,
+        }
+    }
+}

@@ -1,0 +1,258 @@
+//! A scenario (world file + model library) turned into a settled scene: static boxes (floor,
+//! table, bins) and objects at rest, with their ground-truth poses.
+
+use crate::physics::{Cell, SettleReport};
+use crate::world::{WorldError, WorldFile};
+use mesh::{Library, TriMesh};
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3, Vector4};
+use rand::{RngExt, SeedableRng, rngs::StdRng};
+use rand_distr::StandardNormal;
+use std::path::{Path, PathBuf};
+
+/// A world file with the library its models come from, checked against each other.
+#[derive(Debug, Clone)]
+pub struct Scenario {
+    pub path: PathBuf,
+    pub world: WorldFile,
+    pub library: Library,
+}
+
+/// Why a scenario could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum ScenarioError {
+    #[error(transparent)]
+    World(#[from] WorldError),
+    #[error(transparent)]
+    Library(#[from] mesh::library::LibraryError),
+}
+
+impl Scenario {
+    pub fn load(path: &Path) -> Result<Scenario, ScenarioError> {
+        let world = WorldFile::load(path)?;
+        let library = Library::load_dir(&world.library_dir(path))?;
+        let text = std::fs::read_to_string(path).map_err(|source| WorldError::Io {
+            file: path.display().to_string(),
+            source,
+        })?;
+        world.check_models(&library, &text, &path.display().to_string())?;
+        Ok(Scenario {
+            path: path.to_path_buf(),
+            world,
+            library,
+        })
+    }
+}
+
+/// A fixed box of the cell: floor, table top, bin walls.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StaticBox {
+    pub name: String,
+    pub world_from_box: Isometry3<f64>,
+    pub half_extents: Vector3<f64>,
+    pub albedo: f64,
+}
+
+impl StaticBox {
+    fn at(name: String, centre: [f64; 3], half: [f64; 3], albedo: f64) -> Self {
+        StaticBox {
+            name,
+            world_from_box: Isometry3::translation(centre[0], centre[1], centre[2]),
+            half_extents: Vector3::from(half),
+            albedo,
+        }
+    }
+
+    pub fn mesh(&self) -> TriMesh {
+        TriMesh::cuboid(self.half_extents, self.albedo as f32).transformed(&self.world_from_box)
+    }
+}
+
+/// The fixed boxes of a world: the floor, the table (top at `z = 0`) and each bin.
+pub fn static_boxes(world: &WorldFile) -> Vec<StaticBox> {
+    let t = &world.table;
+    let (h, [sx, sy]) = (t.height_m, t.size_m);
+    let mut boxes = vec![
+        StaticBox::at(
+            "floor".into(),
+            [0.0, 0.0, -h - 0.05],
+            [10.0, 10.0, 0.05],
+            t.floor_albedo,
+        ),
+        StaticBox::at(
+            "table".into(),
+            [0.0, 0.0, -h / 2.0],
+            [sx / 2.0, sy / 2.0, h / 2.0],
+            t.albedo,
+        ),
+    ];
+    for b in &world.bins {
+        let ([cx, cy], [ix, iy, wall_h], w) = (b.centre_m, b.size_m, b.wall_m);
+        let (ox, oy) = (ix / 2.0 + w, iy / 2.0 + w); // outer half sizes
+        let z = w + wall_h / 2.0;
+        let name = |part: &str| format!("bin {} {part}", b.name);
+        boxes.extend([
+            StaticBox::at(
+                name("floor"),
+                [cx, cy, w / 2.0],
+                [ox, oy, w / 2.0],
+                b.albedo,
+            ),
+            StaticBox::at(
+                name("wall -x"),
+                [cx - ox + w / 2.0, cy, z],
+                [w / 2.0, oy, wall_h / 2.0],
+                b.albedo,
+            ),
+            StaticBox::at(
+                name("wall +x"),
+                [cx + ox - w / 2.0, cy, z],
+                [w / 2.0, oy, wall_h / 2.0],
+                b.albedo,
+            ),
+            StaticBox::at(
+                name("wall -y"),
+                [cx, cy - oy + w / 2.0, z],
+                [ix / 2.0, w / 2.0, wall_h / 2.0],
+                b.albedo,
+            ),
+            StaticBox::at(
+                name("wall +y"),
+                [cx, cy + oy - w / 2.0, z],
+                [ix / 2.0, w / 2.0, wall_h / 2.0],
+                b.albedo,
+            ),
+        ]);
+    }
+    boxes
+}
+
+/// One object of a scene: `id` is 1-based and is what the id maps hold.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SceneObject {
+    pub id: u32,
+    pub model: String,
+    pub world_from_model: Isometry3<f64>,
+}
+
+/// A settled scene with its ground truth.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    pub seed: u64,
+    pub statics: Vec<StaticBox>,
+    pub objects: Vec<SceneObject>,
+    pub settle: SettleReport,
+}
+
+impl Scene {
+    /// Places the world's objects, drops its clutter from poses drawn with `seed`, and lets
+    /// everything come to rest.
+    pub fn settle(scn: &Scenario, seed: u64) -> Scene {
+        let objects = initial_poses(scn, seed);
+        let statics = static_boxes(&scn.world);
+        let mut cell = Cell::new(&scn.world.physics, &statics);
+        let bodies: Vec<_> = objects
+            .iter()
+            .map(|o| cell.add_object(&scn.library.models[&o.model], &o.world_from_model))
+            .collect();
+        let settle = cell.settle(scn.world.physics.settle_limit_s);
+        let objects = objects
+            .into_iter()
+            .zip(bodies)
+            .map(|(o, body)| SceneObject {
+                world_from_model: cell.pose(body),
+                ..o
+            })
+            .collect();
+        Scene {
+            seed,
+            statics,
+            objects,
+            settle,
+        }
+    }
+
+    /// Every surface in world coordinates, tagged with its id-map value (0 for static parts).
+    pub fn world_meshes<'a>(
+        &'a self,
+        library: &'a Library,
+    ) -> impl Iterator<Item = (u32, TriMesh)> + 'a {
+        let statics = self.statics.iter().map(|b| (0, b.mesh()));
+        let objects = self.objects.iter().map(|o| {
+            (
+                o.id,
+                library.models[&o.model]
+                    .mesh
+                    .transformed(&o.world_from_model),
+            )
+        });
+        statics.chain(objects)
+    }
+}
+
+/// Drop poses: the placed objects as written, then clutter at random positions over the region
+/// and random orientations, kept apart by their bounding spheres.
+fn initial_poses(scn: &Scenario, seed: u64) -> Vec<SceneObject> {
+    let mut out: Vec<SceneObject> = scn
+        .world
+        .objects
+        .iter()
+        .map(|o| {
+            (
+                o.model.clone(),
+                mesh::pose::from_position_rpy_deg(o.position_m, o.rpy_deg),
+            )
+        })
+        .enumerate()
+        .map(|(i, (model, pose))| SceneObject {
+            id: i as u32 + 1,
+            model,
+            world_from_model: pose,
+        })
+        .collect();
+    let Some(clutter) = &scn.world.clutter else {
+        return out;
+    };
+    let mut rng = StdRng::seed_from_u64(seed);
+    let mut spheres: Vec<(Point3<f64>, f64)> = out
+        .iter()
+        .map(|o| {
+            (
+                o.world_from_model * Point3::origin(),
+                scn.library.models[&o.model].mesh.radius(),
+            )
+        })
+        .collect();
+    let names = clutter
+        .objects
+        .iter()
+        .flat_map(|c| std::iter::repeat_n(&c.model, c.count as usize));
+    for model in names {
+        let radius = scn.library.models[model].mesh.radius();
+        let (r, [lo, hi]) = (&clutter.region_m, clutter.drop_height_m);
+        let mut centre = Point3::origin();
+        for attempt in 0.. {
+            // Every failed try raises the drop band, so a crowded drop always finds room.
+            let lift = 0.02 * (attempt / 50) as f64;
+            centre = Point3::new(
+                rng.random_range(r.min[0]..=r.max[0]),
+                rng.random_range(r.min[1]..=r.max[1]),
+                rng.random_range(lo..=hi) + radius + lift,
+            );
+            if spheres
+                .iter()
+                .all(|(c, rad)| (*c - centre).norm() > rad + radius)
+            {
+                break;
+            }
+        }
+        spheres.push((centre, radius));
+        let q: Vector4<f64> = Vector4::from_fn(|_, _| rng.sample(StandardNormal));
+        let rotation = UnitQuaternion::from_quaternion(nalgebra::Quaternion::from(q));
+        out.push(SceneObject {
+            id: out.len() as u32 + 1,
+            model: model.clone(),
+            world_from_model: Isometry3::from_parts(Translation3::from(centre.coords), rotation),
+        });
+    }
+    out
+}
