@@ -98,10 +98,10 @@ pub struct StereoCalibration {
 /// Why a calibration could not be read.
 #[derive(Debug, thiserror::Error)]
 pub enum CalibrationError {
-    #[error("{path}: {source}")]
+    #[error("{path}: {cause}")]
     Io {
         path: String,
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     #[error("{path}: line {line}, column {column}: {message}")]
     Parse {
@@ -127,9 +127,9 @@ impl StereoCalibration {
     /// written by `marvin render`, whose `calibration` member is read.
     pub fn load(path: &Path) -> Result<Self, CalibrationError> {
         let shown = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| CalibrationError::Io {
+        let text = std::fs::read_to_string(path).map_err(|cause| CalibrationError::Io {
             path: shown.clone(),
-            source,
+            cause,
         })?;
         Self::from_json(&text).map_err(|e| CalibrationError::Parse {
             path: shown,

@@ -30,9 +30,9 @@ impl Scenario {
     pub fn load(path: &Path) -> Result<Scenario, ScenarioError> {
         let world = WorldFile::load(path)?;
         let library = Library::load_dir(&world.library_dir(path))?;
-        let text = std::fs::read_to_string(path).map_err(|source| WorldError::Io {
+        let text = std::fs::read_to_string(path).map_err(|cause| WorldError::Io {
             file: path.display().to_string(),
-            source,
+            cause,
         })?;
         world.check_models(&library, &text, &path.display().to_string())?;
         Ok(Scenario {

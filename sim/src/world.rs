@@ -218,10 +218,10 @@ fn default_bin_albedo() -> f64 {
 /// A world file that cannot be used, with where and why.
 #[derive(Debug, thiserror::Error)]
 pub enum WorldError {
-    #[error("{file}: {source}")]
+    #[error("{file}: {cause}")]
     Io {
         file: String,
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     #[error("{file}:{line}: field `{field}`: {message}")]
     Invalid {
@@ -235,9 +235,9 @@ pub enum WorldError {
 impl WorldFile {
     /// Reads and checks a world file.
     pub fn load(path: &Path) -> Result<WorldFile, WorldError> {
-        let text = std::fs::read_to_string(path).map_err(|source| WorldError::Io {
+        let text = std::fs::read_to_string(path).map_err(|cause| WorldError::Io {
             file: path.display().to_string(),
-            source,
+            cause,
         })?;
         Self::parse(&text, &path.display().to_string())
     }
@@ -405,32 +405,138 @@ fn line_at(text: &str, span: Option<std::ops::Range<usize>>) -> usize {
 /// 1-based line where a field like `bins[1].size_m[0]` is written; falls back to its nearest
 /// written ancestor, then to line 1.
 fn line_of_field(text: &str, field: &str) -> usize {
-    let Ok(root) = toml::de::DeValue::parse(text) else {
-        return 1;
-    };
-    let mut node = &root;
+    let Ok(root) = toml::de::DeTable::parse(text) else { return 1 };
+    let mut node: Option<&toml::Spanned<toml::de::DeValue>> = None;
     let mut span = None;
     for part in field.split('.') {
-        let (key, indices) = match part.find('[') {
-            Some(at) => (&part[..at], &part[at..]),
-            None => (part, ""),
+        let (key, indices) = part.split_at(part.find('[').unwrap_or(part.len()));
+        let next = match node {
+            None => root.get_ref().get(key),
+            Some(n) => n.get_ref().get(key),
         };
-        let Some(next) = node.get_ref().get(key) else {
-            break;
-        };
-        node = next;
-        span = Some(node.span());
+        let Some(next) = next else { break };
+        node = Some(next);
+        span = Some(next.span());
         for index in indices.split(['[', ']']).filter(|s| !s.is_empty()) {
-            let Some(next) = index
-                .parse::<usize>()
-                .ok()
-                .and_then(|i| node.get_ref().get(i))
-            else {
-                break;
-            };
-            node = next;
-            span = Some(node.span());
+            let Some(next) = index.parse::<usize>().ok().and_then(|i| next_in(node, i)) else { break };
+            node = Some(next);
+            span = Some(next.span());
         }
     }
     line_at(text, span)
+}
+
+fn next_in<'a, 'i>(node: Option<&'a toml::Spanned<toml::de::DeValue<'i>>>, i: usize) -> Option<&'a toml::Spanned<toml::de::DeValue<'i>>> {
+    node?.get_ref().get(i)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = r#"
+seed = 3
+[table]
+size_m = [1.0, 1.0]
+height_m = 0.7
+albedo = 0.3
+[cameras.left]
+focal_px = 900.0
+position_m = [-0.1, -0.7, 0.6]
+look_at_m = [0.0, 0.0, 0.0]
+[cameras.right]
+focal_px = 900.0
+position_m = [0.1, -0.7, 0.6]
+look_at_m = [0.0, 0.0, 0.0]
+[[objects]]
+model = "block"
+position_m = [0.0, 0.0, 0.015]
+"#;
+
+    fn error_of(text: &str) -> (usize, String, String) {
+        match WorldFile::parse(text, "w.toml") {
+            Err(WorldError::Invalid { line, field, message, .. }) => (line, field, message),
+            other => panic!("expected an invalid-world error, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn a_good_file_parses_with_defaults() {
+        let w = WorldFile::parse(GOOD, "w.toml").unwrap();
+        assert_eq!(w.seed, 3);
+        assert_eq!(w.cameras.left.resolution, [512, 512]);
+        assert_eq!(w.render.noise_sigma, 1.5);
+    }
+
+    #[test]
+    fn a_wrong_type_names_its_line_and_field() {
+        let bad = GOOD.replace("focal_px = 900.0\nposition_m = [0.1", "focal_px = \"wide\"\nposition_m = [0.1");
+        let (line, field, message) = error_of(&bad);
+        assert_eq!(line, 12);
+        assert_eq!(field, "cameras.right.focal_px");
+        assert!(message.contains("expected f64"), "{message}");
+    }
+
+    #[test]
+    fn an_unknown_field_is_named() {
+        let bad = GOOD.replace("albedo = 0.3", "albedo = 0.3\ncolour = 2");
+        let (line, field, message) = error_of(&bad);
+        assert_eq!(line, 7);
+        assert_eq!(field, "table.colour");
+        assert!(message.contains("unknown field `colour`"), "{message}");
+    }
+
+    #[test]
+    fn a_missing_field_is_named() {
+        let bad = GOOD.replace("height_m = 0.7\n", "");
+        let (_, field, message) = error_of(&bad);
+        assert_eq!(field, "table");
+        assert!(message.contains("missing field `height_m`"), "{message}");
+    }
+
+    #[test]
+    fn a_syntax_error_names_its_line() {
+        let bad = GOOD.replace("seed = 3", "seed = = 3");
+        let (line, _, _) = error_of(&bad);
+        assert_eq!(line, 2);
+    }
+
+    #[test]
+    fn an_out_of_range_value_names_its_line_and_field() {
+        let bad = GOOD.replace("focal_px = 900.0\nposition_m = [-0.1", "focal_px = -5.0\nposition_m = [-0.1");
+        let (line, field, message) = error_of(&bad);
+        assert_eq!((line, field.as_str()), (8, "cameras.left.focal_px"));
+        assert!(message.contains("positive"), "{message}");
+        let bad = GOOD.to_string() + "[[bins]]\nname = \"a\"\ncentre_m = [0.3, 0.0]\nsize_m = [0.2, 0.0, 0.05]\n";
+        let (line, field, _) = error_of(&bad);
+        assert_eq!((line, field.as_str()), (21, "bins[0].size_m[1]"));
+    }
+
+    #[test]
+    fn an_unknown_model_names_its_line_and_field() {
+        let bad = GOOD.replace("model = \"block\"", "model = \"teapot\"");
+        let w = WorldFile::parse(&bad, "w.toml").unwrap();
+        let lib = mesh::Library::load_default().unwrap();
+        match w.check_models(&lib, &bad, "w.toml") {
+            Err(WorldError::Invalid { line, field, message, .. }) => {
+                assert_eq!((line, field.as_str()), (16, "objects[0].model"));
+                assert!(message.contains("teapot") && message.contains("widget"), "{message}");
+            }
+            other => panic!("expected an error, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn the_shipped_worlds_load() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds");
+        let mut n = 0;
+        for entry in std::fs::read_dir(dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_some_and(|e| e == "toml") {
+                crate::Scenario::load(&path).unwrap_or_else(|e| panic!("{e}"));
+                n += 1;
+            }
+        }
+        assert!(n >= 1);
+    }
 }
