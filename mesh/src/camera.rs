@@ -99,10 +99,7 @@ pub struct StereoCalibration {
 #[derive(Debug, thiserror::Error)]
 pub enum CalibrationError {
     #[error("{path}: {cause}")]
-    Io {
-        path: String,
-        cause: std::io::Error,
-    },
+    Io { path: String, cause: std::io::Error },
     #[error("{path}: line {line}, column {column}: {message}")]
     Parse {
         path: String,

@@ -43,6 +43,11 @@ impl Scenario {
     }
 }
 
+/// Drops tried before a scene is accepted as it is.
+const MAX_DROPS: u32 = 5;
+/// Deepest interpenetration a settled scene may keep, metres.
+const MAX_CONTACT_DEPTH: f64 = 0.75e-3;
+
 /// A fixed box of the cell: floor, table top, bin walls.
 #[derive(Debug, Clone, PartialEq)]
 pub struct StaticBox {
@@ -145,9 +150,28 @@ pub struct Scene {
 
 impl Scene {
     /// Places the world's objects, drops its clutter from poses drawn with `seed`, and lets
-    /// everything come to rest.
+    /// everything come to rest. Rapier occasionally leaves two compound objects wedged a
+    /// millimetre or more into each other (about 2 drops in 100 of the default scene); such a
+    /// drop is redone from poses drawn with a seed derived from `seed`, so the scene stays a
+    /// function of the seed.
     pub fn settle(scn: &Scenario, seed: u64) -> Scene {
-        let objects = initial_poses(scn, seed);
+        let mut drop_seed = seed;
+        for drops in 1..=MAX_DROPS {
+            let mut scene = Self::drop_once(scn, seed, drop_seed);
+            scene.settle.drops = drops;
+            let valid = scene.settle.at_rest && scene.settle.max_contact_depth <= MAX_CONTACT_DEPTH;
+            if valid || drops == MAX_DROPS {
+                return scene;
+            }
+            drop_seed = drop_seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+        }
+        unreachable!("the last drop always returns")
+    }
+
+    fn drop_once(scn: &Scenario, seed: u64, drop_seed: u64) -> Scene {
+        let objects = initial_poses(scn, drop_seed);
         let statics = static_boxes(&scn.world);
         let mut cell = Cell::new(&scn.world.physics, &statics);
         let bodies: Vec<_> = objects

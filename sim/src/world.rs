@@ -219,10 +219,7 @@ fn default_bin_albedo() -> f64 {
 #[derive(Debug, thiserror::Error)]
 pub enum WorldError {
     #[error("{file}: {cause}")]
-    Io {
-        file: String,
-        cause: std::io::Error,
-    },
+    Io { file: String, cause: std::io::Error },
     #[error("{file}:{line}: field `{field}`: {message}")]
     Invalid {
         file: String,
@@ -405,7 +402,9 @@ fn line_at(text: &str, span: Option<std::ops::Range<usize>>) -> usize {
 /// 1-based line where a field like `bins[1].size_m[0]` is written; falls back to its nearest
 /// written ancestor, then to line 1.
 fn line_of_field(text: &str, field: &str) -> usize {
-    let Ok(root) = toml::de::DeTable::parse(text) else { return 1 };
+    let Ok(root) = toml::de::DeTable::parse(text) else {
+        return 1;
+    };
     let mut node: Option<&toml::Spanned<toml::de::DeValue>> = None;
     let mut span = None;
     for part in field.split('.') {
@@ -418,7 +417,9 @@ fn line_of_field(text: &str, field: &str) -> usize {
         node = Some(next);
         span = Some(next.span());
         for index in indices.split(['[', ']']).filter(|s| !s.is_empty()) {
-            let Some(next) = index.parse::<usize>().ok().and_then(|i| next_in(node, i)) else { break };
+            let Some(next) = index.parse::<usize>().ok().and_then(|i| next_in(node, i)) else {
+                break;
+            };
             node = Some(next);
             span = Some(next.span());
         }
@@ -426,7 +427,10 @@ fn line_of_field(text: &str, field: &str) -> usize {
     line_at(text, span)
 }
 
-fn next_in<'a, 'i>(node: Option<&'a toml::Spanned<toml::de::DeValue<'i>>>, i: usize) -> Option<&'a toml::Spanned<toml::de::DeValue<'i>>> {
+fn next_in<'a, 'i>(
+    node: Option<&'a toml::Spanned<toml::de::DeValue<'i>>>,
+    i: usize,
+) -> Option<&'a toml::Spanned<toml::de::DeValue<'i>>> {
     node?.get_ref().get(i)
 }
 
@@ -455,7 +459,12 @@ position_m = [0.0, 0.0, 0.015]
 
     fn error_of(text: &str) -> (usize, String, String) {
         match WorldFile::parse(text, "w.toml") {
-            Err(WorldError::Invalid { line, field, message, .. }) => (line, field, message),
+            Err(WorldError::Invalid {
+                line,
+                field,
+                message,
+                ..
+            }) => (line, field, message),
             other => panic!("expected an invalid-world error, got {other:?}"),
         }
     }
@@ -470,7 +479,10 @@ position_m = [0.0, 0.0, 0.015]
 
     #[test]
     fn a_wrong_type_names_its_line_and_field() {
-        let bad = GOOD.replace("focal_px = 900.0\nposition_m = [0.1", "focal_px = \"wide\"\nposition_m = [0.1");
+        let bad = GOOD.replace(
+            "focal_px = 900.0\nposition_m = [0.1",
+            "focal_px = \"wide\"\nposition_m = [0.1",
+        );
         let (line, field, message) = error_of(&bad);
         assert_eq!(line, 12);
         assert_eq!(field, "cameras.right.focal_px");
@@ -503,11 +515,15 @@ position_m = [0.0, 0.0, 0.015]
 
     #[test]
     fn an_out_of_range_value_names_its_line_and_field() {
-        let bad = GOOD.replace("focal_px = 900.0\nposition_m = [-0.1", "focal_px = -5.0\nposition_m = [-0.1");
+        let bad = GOOD.replace(
+            "focal_px = 900.0\nposition_m = [-0.1",
+            "focal_px = -5.0\nposition_m = [-0.1",
+        );
         let (line, field, message) = error_of(&bad);
         assert_eq!((line, field.as_str()), (8, "cameras.left.focal_px"));
         assert!(message.contains("positive"), "{message}");
-        let bad = GOOD.to_string() + "[[bins]]\nname = \"a\"\ncentre_m = [0.3, 0.0]\nsize_m = [0.2, 0.0, 0.05]\n";
+        let bad = GOOD.to_string()
+            + "[[bins]]\nname = \"a\"\ncentre_m = [0.3, 0.0]\nsize_m = [0.2, 0.0, 0.05]\n";
         let (line, field, _) = error_of(&bad);
         assert_eq!((line, field.as_str()), (21, "bins[0].size_m[1]"));
     }
@@ -518,9 +534,17 @@ position_m = [0.0, 0.0, 0.015]
         let w = WorldFile::parse(&bad, "w.toml").unwrap();
         let lib = mesh::Library::load_default().unwrap();
         match w.check_models(&lib, &bad, "w.toml") {
-            Err(WorldError::Invalid { line, field, message, .. }) => {
+            Err(WorldError::Invalid {
+                line,
+                field,
+                message,
+                ..
+            }) => {
                 assert_eq!((line, field.as_str()), (16, "objects[0].model"));
-                assert!(message.contains("teapot") && message.contains("widget"), "{message}");
+                assert!(
+                    message.contains("teapot") && message.contains("widget"),
+                    "{message}"
+                );
             }
             other => panic!("expected an error, got {other:?}"),
         }
