@@ -20,7 +20,7 @@ impl Extrusion {
     /// Checks the profile and orients it counter-clockwise.
     pub fn new(mut profile: Vec<Point2<f64>>, thickness: f64) -> Result<Self, String> {
         polygon::validate_simple(&profile)?;
-        if !(thickness > 0.0) {
+        if thickness.is_nan() || thickness <= 0.0 {
             return Err(format!("thickness must be positive, got {thickness}"));
         }
         if polygon::signed_area2(&profile) < 0.0 {

@@ -90,7 +90,7 @@ impl Model {
         if !(0.0..=1.0).contains(&spec.albedo) {
             return Err(format!("albedo must be within 0-1, got {}", spec.albedo));
         }
-        if !(spec.density_kg_m3 > 0.0) {
+        if spec.density_kg_m3.is_nan() || spec.density_kg_m3 <= 0.0 {
             return Err(format!(
                 "density_kg_m3 must be positive, got {}",
                 spec.density_kg_m3

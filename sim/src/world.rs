@@ -311,7 +311,7 @@ impl WorldFile {
                 ));
             }
         }
-        if !(self.render.noise_sigma >= 0.0) {
+        if !(self.render.noise_sigma.is_finite() && self.render.noise_sigma >= 0.0) {
             return Err((
                 "render.noise_sigma".into(),
                 format!("must be >= 0, got {}", self.render.noise_sigma),
