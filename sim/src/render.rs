@@ -11,21 +11,20 @@
 
 use mesh::{PinholeCamera, StereoCalibration, TriMesh};
 use nalgebra::{Point3, Vector3};
-use rand::{SeedableRng, rngs::StdRng};
+use rand::{SeedableRng, rngs::Xoshiro256PlusPlus};
 use rand_distr::{Distribution, Normal};
 use rayon::prelude::*;
 
 /// Anti-aliasing samples per pixel (the depth/id sample comes on top).
 pub const SAMPLES: usize = 16;
-const ALL_SAMPLES: usize = SAMPLES + 1;
 const TILE: usize = 32;
 /// Near clipping plane, metres in front of the camera.
 const NEAR: f64 = 0.01;
 const NO_TRIANGLE: u32 = u32::MAX;
 
-/// Sample offsets from the pixel centre: 16 n-rooks samples, then the centre.
-fn sample_offsets() -> ([f32; ALL_SAMPLES], [f32; ALL_SAMPLES]) {
-    let (mut ox, mut oy) = ([0.0; ALL_SAMPLES], [0.0; ALL_SAMPLES]);
+/// Sample offsets from the pixel centre: 16 n-rooks samples.
+fn sample_offsets() -> ([f32; SAMPLES], [f32; SAMPLES]) {
+    let (mut ox, mut oy) = ([0.0; SAMPLES], [0.0; SAMPLES]);
     for k in 0..SAMPLES {
         ox[k] = (k as f32 + 0.5) / SAMPLES as f32 - 0.5;
         oy[k] = (((5 * k + 3) % SAMPLES) as f32 + 0.5) / SAMPLES as f32 - 0.5;
@@ -109,6 +108,7 @@ struct ScreenTriangle {
     /// `1/z = p x + q y + r`.
     inv_z: [f64; 3],
     bbox: [i32; 4], // x0, y0, x1, y1 inclusive pixel range
+    nearest_inv_z: f64,
     brightness: f32,
     id: u16,
 }
@@ -117,7 +117,9 @@ struct ScreenTriangle {
 /// from `seed`.
 pub fn render(scene: &RenderScene, cam: &PinholeCamera, noise_sigma: f64, seed: u64) -> Frame {
     let (w, h) = (cam.width as usize, cam.height as usize);
-    let tris = project(scene, cam);
+    let mut tris = project(scene, cam);
+    // Nearest first, so that tiles learn early what hides the rest (see `draw_tile`).
+    if std::env::var("NOSORT").is_err() { tris.sort_by(|a, b| b.nearest_inv_z.total_cmp(&a.nearest_inv_z)); }
     let (tiles_x, tiles_y) = (w.div_ceil(TILE), h.div_ceil(TILE));
     let mut bins: Vec<Vec<u32>> = vec![Vec::new(); tiles_x * tiles_y];
     for (i, t) in tris.iter().enumerate() {
@@ -130,7 +132,7 @@ pub fn render(scene: &RenderScene, cam: &PinholeCamera, noise_sigma: f64, seed: 
     }
     let tiles: Vec<TileOut> = (0..tiles_x * tiles_y)
         .into_par_iter()
-        .map(|k| {
+        .map_init(|| vec![NOTHING; TILE * TILE], |pixels, k| {
             let (tx, ty) = (k % tiles_x, k / tiles_x);
             let area = TileArea {
                 x0: tx * TILE,
@@ -141,7 +143,7 @@ pub fn render(scene: &RenderScene, cam: &PinholeCamera, noise_sigma: f64, seed: 
             let tile_seed = seed
                 .wrapping_mul(0x9E37_79B9_7F4A_7C15)
                 .wrapping_add(k as u64);
-            draw_tile(&tris, &bins[k], area, noise_sigma, tile_seed)
+            draw_tile(&tris, &bins[k], area, noise_sigma, tile_seed, pixels)
         })
         .collect();
     let mut frame = Frame {
@@ -267,10 +269,12 @@ fn setup(v: [[f64; 3]; 3], cam: &PinholeCamera, t: &ShadedTriangle) -> Option<Sc
     if bbox[0] > bbox[2] || bbox[1] > bbox[3] {
         return None;
     }
+    let nearest_inv_z = v.iter().map(|c| c[2]).fold(f64::MIN, f64::max);
     Some(ScreenTriangle {
         edges,
         inv_z: [p, q, r],
         bbox: bbox.map(|c| c as i32),
+        nearest_inv_z,
         brightness: t.brightness,
         id: t.id,
     })
@@ -291,94 +295,165 @@ struct TileOut {
     ids: Vec<u16>,
 }
 
-/// Rasterises the triangles binned to one tile, then resolves samples into pixels.
+/// The samples of one pixel: the anti-aliasing samples keep the brightness of the nearest
+/// surface; the centre sample keeps its triangle, for the depth and id maps.
+#[derive(Debug, Clone, Copy)]
+struct PixelSamples {
+    inv_z: [f32; SAMPLES],
+    shade: [f32; SAMPLES],
+    centre_inv_z: f32,
+    centre: u32,
+}
+
+const NOTHING: PixelSamples =
+    PixelSamples { inv_z: [0.0; SAMPLES], shade: [0.0; SAMPLES], centre_inv_z: 0.0, centre: NO_TRIANGLE };
+
+/// One triangle's planes relative to a tile's origin, with every sample's offset from the
+/// pixel centre already applied to each plane.
+struct TilePlanes {
+    edges: [[f32; 3]; 3],
+    inv_z: [f32; 3],
+    /// Half the range of each edge function over a pixel: beyond it, all samples agree.
+    reach: [f32; 3],
+    edge_at_sample: [[f32; SAMPLES]; 3],
+    inv_z_at_sample: [f32; SAMPLES],
+}
+
+impl TilePlanes {
+    fn new(t: &ScreenTriangle, area: &TileArea, (ox, oy): &([f32; SAMPLES], [f32; SAMPLES])) -> Self {
+        // Planes relative to the tile origin keep f32 exact enough.
+        let (x0, y0) = (area.x0 as f64, area.y0 as f64);
+        let rel = |[a, b, c]: [f64; 3]| [a as f32, b as f32, (c + a * x0 + b * y0) as f32];
+        let edges = t.edges.map(rel);
+        let inv_z = rel(t.inv_z);
+        let at_samples = |[a, b, _]: [f32; 3]| std::array::from_fn(|s| a * ox[s] + b * oy[s]);
+        TilePlanes {
+            reach: edges.map(|[a, b, _]| 0.5 * (a.abs() + b.abs())),
+            edge_at_sample: edges.map(at_samples),
+            inv_z_at_sample: at_samples(inv_z),
+            edges,
+            inv_z,
+        }
+    }
+
+    fn inv_z_at(&self, x: f32, y: f32) -> f32 {
+        self.inv_z[0] * x + self.inv_z[1] * y + self.inv_z[2]
+    }
+}
+
+/// Rasterises the triangles binned to one tile (nearest first), then resolves samples into
+/// pixels. Once a triangle has covered the whole tile, any later one lying wholly behind it is
+/// skipped: that is what keeps the hidden floor under the table from costing a full pass.
 fn draw_tile(
     tris: &[ScreenTriangle],
     binned: &[u32],
     area: TileArea,
     noise_sigma: f64,
     seed: u64,
+    pixels: &mut Vec<PixelSamples>,
 ) -> TileOut {
-    let (ox, oy) = sample_offsets();
-    let n = area.w * area.h;
-    let mut inv_z = vec![0.0f32; n * ALL_SAMPLES];
-    let mut which = vec![NO_TRIANGLE; n * ALL_SAMPLES];
+    let offsets = sample_offsets();
+    pixels.clear();
+    pixels.resize(area.w * area.h, NOTHING);
+    // Every sample of the tile is known to be at least this near (in 1/z).
+    let mut occluded_beyond = 0.0f32;
+    let (right, bottom) = (area.w as f32 - 0.5, area.h as f32 - 0.5);
+    let corners = [(-0.5, -0.5), (right, -0.5), (-0.5, bottom), (right, bottom)];
     for &ti in binned {
         let t = &tris[ti as usize];
-        // Planes relative to the tile origin keep f32 exact enough.
-        let (fx0, fy0) = (area.x0 as f64, area.y0 as f64);
-        let rel = |[a, b, c]: [f64; 3]| [a as f32, b as f32, (c + a * fx0 + b * fy0) as f32];
-        let e = t.edges.map(rel);
-        let z = rel(t.inv_z);
-        let reach = e.map(|[a, b, _]| 0.5 * (a.abs() + b.abs()));
-        let xs = (t.bbox[0] as usize).max(area.x0)..=(t.bbox[2] as usize).min(area.x0 + area.w - 1);
-        let ys = (t.bbox[1] as usize).max(area.y0)..=(t.bbox[3] as usize).min(area.y0 + area.h - 1);
-        for py in ys {
-            let y = (py - area.y0) as f32;
-            for px in xs.clone() {
-                let x = (px - area.x0) as f32;
-                let ec = e.map(|[a, b, c]| a * x + b * y + c);
-                if (0..3).any(|i| ec[i] < -reach[i]) {
-                    continue;
+        let pl = TilePlanes::new(t, &area, &offsets);
+        let corner_z = corners.map(|(x, y)| pl.inv_z_at(x, y));
+        if corner_z.iter().all(|&z| z < occluded_beyond) {
+            continue;
+        }
+        let edge_at_corners = pl.edges.map(|[a, b, c]| corners.map(|(x, y)| a * x + b * y + c));
+        if edge_at_corners.iter().any(|e| e.iter().all(|&v| v < 0.0)) {
+            continue; // the tile lies wholly outside one edge
+        }
+        let covers_tile = edge_at_corners.iter().all(|e| e.iter().all(|&v| v >= 0.0));
+        rasterise(pixels, t, ti, &pl, &area, covers_tile);
+        if covers_tile {
+            occluded_beyond = occluded_beyond.max(corner_z.into_iter().fold(f32::MAX, f32::min));
+        }
+    }
+    resolve(tris, area, pixels, noise_sigma, seed)
+}
+
+/// Draws one triangle into a tile's samples; `whole` when it covers every sample of the tile.
+fn rasterise(pixels: &mut [PixelSamples], t: &ScreenTriangle, ti: u32, pl: &TilePlanes, area: &TileArea, whole: bool) {
+    let xs = (t.bbox[0] as usize).max(area.x0)..=(t.bbox[2] as usize).min(area.x0 + area.w - 1);
+    let ys = (t.bbox[1] as usize).max(area.y0)..=(t.bbox[3] as usize).min(area.y0 + area.h - 1);
+    for py in ys {
+        let y = (py - area.y0) as f32;
+        for px in xs.clone() {
+            let x = (px - area.x0) as f32;
+            let zc = pl.inv_z_at(x, y);
+            let p = &mut pixels[(py - area.y0) * area.w + (px - area.x0)];
+            if whole {
+                cover_all(p, zc, &pl.inv_z_at_sample, t.brightness);
+                if zc > p.centre_inv_z {
+                    p.centre_inv_z = zc;
+                    p.centre = ti;
                 }
-                let full = (0..3).all(|i| ec[i] >= reach[i]);
-                let zc = z[0] * x + z[1] * y + z[2];
-                let base = ((py - area.y0) * area.w + (px - area.x0)) * ALL_SAMPLES;
-                for s in 0..ALL_SAMPLES {
-                    let inside =
-                        full || (0..3).all(|i| ec[i] + e[i][0] * ox[s] + e[i][1] * oy[s] >= 0.0);
-                    let zs = zc + z[0] * ox[s] + z[1] * oy[s];
-                    if inside && zs > inv_z[base + s] {
-                        inv_z[base + s] = zs;
-                        which[base + s] = ti;
-                    }
-                }
+                continue;
+            }
+            let ec = pl.edges.map(|[a, b, c]| a * x + b * y + c);
+            if (0..3).any(|i| ec[i] < -pl.reach[i]) {
+                continue;
+            }
+            if (0..3).all(|i| ec[i] >= pl.reach[i]) {
+                cover_all(p, zc, &pl.inv_z_at_sample, t.brightness);
+            } else {
+                cover_some(p, zc, pl, ec, t.brightness);
+            }
+            if ec.iter().all(|&e| e >= 0.0) && zc > p.centre_inv_z {
+                p.centre_inv_z = zc;
+                p.centre = ti;
             }
         }
     }
-    resolve(tris, area, &inv_z, &which, noise_sigma, seed)
 }
 
-fn resolve(
-    tris: &[ScreenTriangle],
-    area: TileArea,
-    inv_z: &[f32],
-    which: &[u32],
-    noise_sigma: f64,
-    seed: u64,
-) -> TileOut {
+/// Depth-tests every anti-aliasing sample of a pixel the triangle covers entirely.
+#[inline(always)]
+fn cover_all(p: &mut PixelSamples, zc: f32, dz: &[f32; SAMPLES], shade: f32) {
+    let zs: [f32; SAMPLES] = std::array::from_fn(|s| zc + dz[s]);
+    keep_nearer(p, &zs, &[true; SAMPLES], shade);
+}
+
+/// Depth-tests the anti-aliasing samples of a pixel that the triangle covers.
+#[inline(always)]
+fn cover_some(p: &mut PixelSamples, zc: f32, pl: &TilePlanes, ec: [f32; 3], shade: f32) {
+    let [e0, e1, e2] = &pl.edge_at_sample;
+    let inside: [bool; SAMPLES] =
+        std::array::from_fn(|s| (ec[0] + e0[s] >= 0.0) & (ec[1] + e1[s] >= 0.0) & (ec[2] + e2[s] >= 0.0));
+    let zs: [f32; SAMPLES] = std::array::from_fn(|s| zc + pl.inv_z_at_sample[s]);
+    keep_nearer(p, &zs, &inside, shade);
+}
+
+/// Where a covered sample is nearer than what the pixel holds, takes its depth and shade.
+/// Written as whole-array selects on bits, not conditional stores, so that it vectorises.
+#[inline(always)]
+fn keep_nearer(p: &mut PixelSamples, zs: &[f32; SAMPLES], inside: &[bool; SAMPLES], shade: f32) {
+    let mask: [u32; SAMPLES] = std::array::from_fn(|s| if inside[s] & (zs[s] > p.inv_z[s]) { u32::MAX } else { 0 });
+    let pick = |new: f32, old: f32, m: u32| f32::from_bits((new.to_bits() & m) | (old.to_bits() & !m));
+    p.inv_z = std::array::from_fn(|s| pick(zs[s], p.inv_z[s], mask[s]));
+    p.shade = std::array::from_fn(|s| pick(shade, p.shade[s], mask[s]));
+}
+
+fn resolve(tris: &[ScreenTriangle], area: TileArea, pixels: &[PixelSamples], noise_sigma: f64, seed: u64) -> TileOut {
     let n = area.w * area.h;
-    let mut rng = StdRng::seed_from_u64(seed);
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
     let noise = Normal::new(0.0f32, noise_sigma as f32).expect("noise sigma is checked to be >= 0");
-    let mut out = TileOut {
-        area,
-        image: vec![0; n],
-        depth: vec![0.0; n],
-        ids: vec![0; n],
-    };
-    for p in 0..n {
-        let samples = &which[p * ALL_SAMPLES..(p + 1) * ALL_SAMPLES];
-        let sum: f32 = samples[..SAMPLES]
-            .iter()
-            .map(|&t| {
-                if t == NO_TRIANGLE {
-                    0.0
-                } else {
-                    tris[t as usize].brightness
-                }
-            })
-            .sum();
-        let grey = 255.0 * sum / SAMPLES as f32
-            + if noise_sigma > 0.0 {
-                noise.sample(&mut rng)
-            } else {
-                0.0
-            };
-        out.image[p] = grey.round().clamp(0.0, 255.0) as u8;
-        let centre = samples[SAMPLES];
-        if centre != NO_TRIANGLE {
-            out.depth[p] = 1.0 / inv_z[p * ALL_SAMPLES + SAMPLES];
-            out.ids[p] = tris[centre as usize].id;
+    let mut out = TileOut { area, image: vec![0; n], depth: vec![0.0; n], ids: vec![0; n] };
+    for (p, px) in pixels.iter().enumerate() {
+        let sum: f32 = px.shade.iter().sum();
+        let grain = if noise_sigma > 0.0 { noise.sample(&mut rng) } else { 0.0 };
+        // Clamped to 0-255 first, so adding 0.5 and truncating rounds to nearest.
+        out.image[p] = ((255.0 * sum / SAMPLES as f32 + grain).clamp(0.0, 255.0) + 0.5) as u8;
+        if px.centre != NO_TRIANGLE {
+            out.depth[p] = 1.0 / px.centre_inv_z;
+            out.ids[p] = tris[px.centre as usize].id;
         }
     }
     out
