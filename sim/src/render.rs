@@ -119,7 +119,7 @@ pub fn render(scene: &RenderScene, cam: &PinholeCamera, noise_sigma: f64, seed: 
     let (w, h) = (cam.width as usize, cam.height as usize);
     let mut tris = project(scene, cam);
     // Nearest first, so that tiles learn early what hides the rest (see `draw_tile`).
-    if std::env::var("NOSORT").is_err() { tris.sort_by(|a, b| b.nearest_inv_z.total_cmp(&a.nearest_inv_z)); }
+    tris.sort_by(|a, b| b.nearest_inv_z.total_cmp(&a.nearest_inv_z));
     let (tiles_x, tiles_y) = (w.div_ceil(TILE), h.div_ceil(TILE));
     let mut bins: Vec<Vec<u32>> = vec![Vec::new(); tiles_x * tiles_y];
     for (i, t) in tris.iter().enumerate() {
@@ -132,19 +132,22 @@ pub fn render(scene: &RenderScene, cam: &PinholeCamera, noise_sigma: f64, seed: 
     }
     let tiles: Vec<TileOut> = (0..tiles_x * tiles_y)
         .into_par_iter()
-        .map_init(|| vec![NOTHING; TILE * TILE], |pixels, k| {
-            let (tx, ty) = (k % tiles_x, k / tiles_x);
-            let area = TileArea {
-                x0: tx * TILE,
-                y0: ty * TILE,
-                w: TILE.min(w - tx * TILE),
-                h: TILE.min(h - ty * TILE),
-            };
-            let tile_seed = seed
-                .wrapping_mul(0x9E37_79B9_7F4A_7C15)
-                .wrapping_add(k as u64);
-            draw_tile(&tris, &bins[k], area, noise_sigma, tile_seed, pixels)
-        })
+        .map_init(
+            || vec![NOTHING; TILE * TILE],
+            |pixels, k| {
+                let (tx, ty) = (k % tiles_x, k / tiles_x);
+                let area = TileArea {
+                    x0: tx * TILE,
+                    y0: ty * TILE,
+                    w: TILE.min(w - tx * TILE),
+                    h: TILE.min(h - ty * TILE),
+                };
+                let tile_seed = seed
+                    .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+                    .wrapping_add(k as u64);
+                draw_tile(&tris, &bins[k], area, noise_sigma, tile_seed, pixels)
+            },
+        )
         .collect();
     let mut frame = Frame {
         width: w,
@@ -305,8 +308,12 @@ struct PixelSamples {
     centre: u32,
 }
 
-const NOTHING: PixelSamples =
-    PixelSamples { inv_z: [0.0; SAMPLES], shade: [0.0; SAMPLES], centre_inv_z: 0.0, centre: NO_TRIANGLE };
+const NOTHING: PixelSamples = PixelSamples {
+    inv_z: [0.0; SAMPLES],
+    shade: [0.0; SAMPLES],
+    centre_inv_z: 0.0,
+    centre: NO_TRIANGLE,
+};
 
 /// One triangle's planes relative to a tile's origin, with every sample's offset from the
 /// pixel centre already applied to each plane.
@@ -320,7 +327,11 @@ struct TilePlanes {
 }
 
 impl TilePlanes {
-    fn new(t: &ScreenTriangle, area: &TileArea, (ox, oy): &([f32; SAMPLES], [f32; SAMPLES])) -> Self {
+    fn new(
+        t: &ScreenTriangle,
+        area: &TileArea,
+        (ox, oy): &([f32; SAMPLES], [f32; SAMPLES]),
+    ) -> Self {
         // Planes relative to the tile origin keep f32 exact enough.
         let (x0, y0) = (area.x0 as f64, area.y0 as f64);
         let rel = |[a, b, c]: [f64; 3]| [a as f32, b as f32, (c + a * x0 + b * y0) as f32];
@@ -366,7 +377,9 @@ fn draw_tile(
         if corner_z.iter().all(|&z| z < occluded_beyond) {
             continue;
         }
-        let edge_at_corners = pl.edges.map(|[a, b, c]| corners.map(|(x, y)| a * x + b * y + c));
+        let edge_at_corners = pl
+            .edges
+            .map(|[a, b, c]| corners.map(|(x, y)| a * x + b * y + c));
         if edge_at_corners.iter().any(|e| e.iter().all(|&v| v < 0.0)) {
             continue; // the tile lies wholly outside one edge
         }
@@ -380,7 +393,14 @@ fn draw_tile(
 }
 
 /// Draws one triangle into a tile's samples; `whole` when it covers every sample of the tile.
-fn rasterise(pixels: &mut [PixelSamples], t: &ScreenTriangle, ti: u32, pl: &TilePlanes, area: &TileArea, whole: bool) {
+fn rasterise(
+    pixels: &mut [PixelSamples],
+    t: &ScreenTriangle,
+    ti: u32,
+    pl: &TilePlanes,
+    area: &TileArea,
+    whole: bool,
+) {
     let xs = (t.bbox[0] as usize).max(area.x0)..=(t.bbox[2] as usize).min(area.x0 + area.w - 1);
     let ys = (t.bbox[1] as usize).max(area.y0)..=(t.bbox[3] as usize).min(area.y0 + area.h - 1);
     for py in ys {
@@ -425,8 +445,9 @@ fn cover_all(p: &mut PixelSamples, zc: f32, dz: &[f32; SAMPLES], shade: f32) {
 #[inline(always)]
 fn cover_some(p: &mut PixelSamples, zc: f32, pl: &TilePlanes, ec: [f32; 3], shade: f32) {
     let [e0, e1, e2] = &pl.edge_at_sample;
-    let inside: [bool; SAMPLES] =
-        std::array::from_fn(|s| (ec[0] + e0[s] >= 0.0) & (ec[1] + e1[s] >= 0.0) & (ec[2] + e2[s] >= 0.0));
+    let inside: [bool; SAMPLES] = std::array::from_fn(|s| {
+        (ec[0] + e0[s] >= 0.0) & (ec[1] + e1[s] >= 0.0) & (ec[2] + e2[s] >= 0.0)
+    });
     let zs: [f32; SAMPLES] = std::array::from_fn(|s| zc + pl.inv_z_at_sample[s]);
     keep_nearer(p, &zs, &inside, shade);
 }
@@ -435,20 +456,42 @@ fn cover_some(p: &mut PixelSamples, zc: f32, pl: &TilePlanes, ec: [f32; 3], shad
 /// Written as whole-array selects on bits, not conditional stores, so that it vectorises.
 #[inline(always)]
 fn keep_nearer(p: &mut PixelSamples, zs: &[f32; SAMPLES], inside: &[bool; SAMPLES], shade: f32) {
-    let mask: [u32; SAMPLES] = std::array::from_fn(|s| if inside[s] & (zs[s] > p.inv_z[s]) { u32::MAX } else { 0 });
-    let pick = |new: f32, old: f32, m: u32| f32::from_bits((new.to_bits() & m) | (old.to_bits() & !m));
+    let mask: [u32; SAMPLES] = std::array::from_fn(|s| {
+        if inside[s] & (zs[s] > p.inv_z[s]) {
+            u32::MAX
+        } else {
+            0
+        }
+    });
+    let pick =
+        |new: f32, old: f32, m: u32| f32::from_bits((new.to_bits() & m) | (old.to_bits() & !m));
     p.inv_z = std::array::from_fn(|s| pick(zs[s], p.inv_z[s], mask[s]));
     p.shade = std::array::from_fn(|s| pick(shade, p.shade[s], mask[s]));
 }
 
-fn resolve(tris: &[ScreenTriangle], area: TileArea, pixels: &[PixelSamples], noise_sigma: f64, seed: u64) -> TileOut {
+fn resolve(
+    tris: &[ScreenTriangle],
+    area: TileArea,
+    pixels: &[PixelSamples],
+    noise_sigma: f64,
+    seed: u64,
+) -> TileOut {
     let n = area.w * area.h;
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
     let noise = Normal::new(0.0f32, noise_sigma as f32).expect("noise sigma is checked to be >= 0");
-    let mut out = TileOut { area, image: vec![0; n], depth: vec![0.0; n], ids: vec![0; n] };
+    let mut out = TileOut {
+        area,
+        image: vec![0; n],
+        depth: vec![0.0; n],
+        ids: vec![0; n],
+    };
     for (p, px) in pixels.iter().enumerate() {
         let sum: f32 = px.shade.iter().sum();
-        let grain = if noise_sigma > 0.0 { noise.sample(&mut rng) } else { 0.0 };
+        let grain = if noise_sigma > 0.0 {
+            noise.sample(&mut rng)
+        } else {
+            0.0
+        };
         // Clamped to 0-255 first, so adding 0.5 and truncating rounds to nearest.
         out.image[p] = ((255.0 * sum / SAMPLES as f32 + grain).clamp(0.0, 255.0) + 0.5) as u8;
         if px.centre != NO_TRIANGLE {
