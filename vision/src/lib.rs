@@ -1,5 +1,17 @@
 //! The emulated MARVIN/TINA vision pipeline. It sees images, a stereo calibration
 //! ([`mesh::StereoCalibration`]) and the model library, never the simulation.
 //!
-//! Not built yet: Canny, edge strings, rectified edges, PMF stereo, 2D and 3D lines and the
-//! Joiner arrive with the front-end issue; the model matcher with the matching issue.
+//! - [`image`]: grey images as plain data.
+//! - [`canny`]: Canny edges (sigma 1, separable Gaussian) located to sub-pixel acuity.
+//! - [`strings`]: edgels linked into ordered 8-connected edge strings.
+//!
+//! Still to come (the front-end issue): rectified edge locations, PMF stereo, 2D and 3D lines,
+//! slices and the Joiner; then the model matcher.
+
+pub mod canny;
+pub mod image;
+pub mod strings;
+
+pub use canny::{CannyParams, EdgeMap, Edgel, canny};
+pub use image::GreyImage;
+pub use strings::{EdgeString, link_strings};

@@ -1,0 +1,365 @@
+//! The Canny edge detector as MARVIN ran it: a single high-frequency scale (Gaussian sigma 1,
+//! applied as a row pass then a column pass), central-difference gradients, non-maximum
+//! suppression along the gradient with sub-pixel location of each edgel (a parabola through
+//! the gradient magnitudes across the edge), and hysteresis between two contrast thresholds.
+
+use crate::image::GreyImage;
+use serde::{Deserialize, Serialize};
+
+/// Canny's parameters. Thresholds are gradient magnitudes in grey levels per pixel.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CannyParams {
+    pub sigma: f32,
+    /// Edgels weaker than this are dropped.
+    pub low: f32,
+    /// A connected run of edgels is kept only if one of them is at least this strong.
+    pub high: f32,
+}
+
+impl Default for CannyParams {
+    fn default() -> Self {
+        CannyParams {
+            sigma: 1.0,
+            low: 2.0,
+            high: 5.0,
+        }
+    }
+}
+
+/// One edge point.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Edgel {
+    /// Sub-pixel position.
+    pub x: f32,
+    pub y: f32,
+    /// Direction of the intensity gradient (from dark to bright), radians, `atan2(gy, gx)`.
+    pub orientation: f32,
+    /// Gradient magnitude at the edge, grey levels per pixel.
+    pub contrast: f32,
+}
+
+/// The edgels of an image, and which pixel each came from.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct EdgeMap {
+    pub width: usize,
+    pub height: usize,
+    pub edgels: Vec<Edgel>,
+    /// Per edgel, the row-major index of the pixel it was found at.
+    pub pixel: Vec<u32>,
+    /// Per pixel, the index of its edgel in `edgels`, or [`NO_EDGEL`].
+    pub at_pixel: Vec<u32>,
+}
+
+pub const NO_EDGEL: u32 = u32::MAX;
+
+impl EdgeMap {
+    pub fn edgel_at(&self, x: usize, y: usize) -> Option<u32> {
+        let i = self.at_pixel[y * self.width + x];
+        (i != NO_EDGEL).then_some(i)
+    }
+
+    /// The pixel edgel `i` was found at.
+    pub fn pixel_of(&self, i: u32) -> (usize, usize) {
+        let p = self.pixel[i as usize] as usize;
+        (p % self.width, p / self.width)
+    }
+
+    fn empty(width: usize, height: usize) -> EdgeMap {
+        EdgeMap {
+            width,
+            height,
+            edgels: Vec::new(),
+            pixel: Vec::new(),
+            at_pixel: vec![NO_EDGEL; width * height],
+        }
+    }
+
+    fn push(&mut self, pixel: usize, e: Edgel) {
+        self.at_pixel[pixel] = self.edgels.len() as u32;
+        self.edgels.push(e);
+        self.pixel.push(pixel as u32);
+    }
+}
+
+/// The normalised 1D Gaussian, radius `ceil(3 sigma)`.
+pub fn gaussian_kernel(sigma: f32) -> Vec<f32> {
+    let r = (3.0 * sigma).ceil().max(1.0) as i32;
+    let k: Vec<f32> = (-r..=r)
+        .map(|i| (-(i * i) as f32 / (2.0 * sigma * sigma)).exp())
+        .collect();
+    let sum: f32 = k.iter().sum();
+    k.into_iter().map(|v| v / sum).collect()
+}
+
+/// Gaussian smoothing by a row pass then a column pass; borders replicate the edge pixels.
+pub fn smooth(img: &GreyImage, sigma: f32) -> Vec<f32> {
+    let (w, h) = (img.width, img.height);
+    let k = gaussian_kernel(sigma);
+    let r = k.len() / 2;
+    let mut rows = vec![0.0f32; w * h];
+    let mut padded = vec![0.0f32; w + 2 * r];
+    for y in 0..h {
+        let src = &img.pixels[y * w..(y + 1) * w];
+        for (i, p) in padded.iter_mut().enumerate() {
+            *p = src[i.saturating_sub(r).min(w - 1)] as f32;
+        }
+        let out = &mut rows[y * w..(y + 1) * w];
+        for (x, o) in out.iter_mut().enumerate() {
+            *o = k
+                .iter()
+                .zip(&padded[x..x + k.len()])
+                .map(|(a, b)| a * b)
+                .sum();
+        }
+    }
+    // Column pass, a whole row at a time so the inner loop runs along memory.
+    let mut out = vec![0.0f32; w * h];
+    for y in 0..h {
+        let dst = &mut out[y * w..(y + 1) * w];
+        for (j, kj) in k.iter().enumerate() {
+            let sy = (y + j).saturating_sub(r).min(h - 1);
+            let src = &rows[sy * w..(sy + 1) * w];
+            for (d, s) in dst.iter_mut().zip(src) {
+                *d += kj * s;
+            }
+        }
+    }
+    out
+}
+
+/// Runs the detector.
+pub fn canny(img: &GreyImage, params: &CannyParams) -> EdgeMap {
+    let (w, h) = (img.width, img.height);
+    let s = smooth(img, params.sigma);
+    let (mut gx, mut gy, mut mag) = (
+        vec![0.0f32; w * h],
+        vec![0.0f32; w * h],
+        vec![0.0f32; w * h],
+    );
+    for y in 1..h.saturating_sub(1) {
+        for x in 1..w - 1 {
+            let i = y * w + x;
+            let (dx, dy) = (0.5 * (s[i + 1] - s[i - 1]), 0.5 * (s[i + w] - s[i - w]));
+            gx[i] = dx;
+            gy[i] = dy;
+            mag[i] = (dx * dx + dy * dy).sqrt();
+        }
+    }
+    let mut map = EdgeMap::empty(w, h);
+    // Non-maximum suppression, two pixels in from the border so interpolation stays inside.
+    for y in 2..h.saturating_sub(2) {
+        for x in 2..w.saturating_sub(2) {
+            let i = y * w + x;
+            let m0 = mag[i];
+            if m0 < params.low {
+                continue;
+            }
+            // Compare and fit along the one of the four pixel lines (row, column, diagonals)
+            // nearest the gradient: its samples are exact, no interpolation, and for a straight
+            // edge the magnitude peaks where any line across it meets it.
+            let (sx, sy) = nearest_pixel_line(gx[i], gy[i]);
+            let step = sy * w as isize + sx;
+            let (behind, ahead) = (
+                mag[(i as isize - step) as usize],
+                mag[(i as isize + step) as usize],
+            );
+            if !(m0 >= ahead && m0 > behind) {
+                continue;
+            }
+            let offset = peak_offset(behind, m0, ahead);
+            let (dx, dy) = (offset * sx as f32, offset * sy as f32);
+            map.push(
+                i,
+                Edgel {
+                    x: x as f32 + dx,
+                    y: y as f32 + dy,
+                    orientation: gy[i].atan2(gx[i]),
+                    contrast: m0 - 0.25 * (behind - ahead) * offset,
+                },
+            );
+        }
+    }
+    hysteresis(map, params.high)
+}
+
+/// Where between three equally spaced samples a peak lies, in sample spacings from the middle
+/// one: a parabola through their logarithms, which is exact for a Gaussian peak (the profile
+/// of a blurred step's gradient) and so avoids the bias of a plain parabola at wide spacings.
+fn peak_offset(behind: f32, middle: f32, ahead: f32) -> f32 {
+    let floor = 1e-3; // magnitudes can be zero far from edges; keep the logarithms finite
+    let (a, m, b) = (
+        behind.max(floor).ln(),
+        middle.max(floor).ln(),
+        ahead.max(floor).ln(),
+    );
+    let curvature = a - 2.0 * m + b;
+    if curvature < 0.0 {
+        (0.5 * (a - b) / curvature).clamp(-0.5, 0.5)
+    } else {
+        0.0
+    }
+}
+
+/// The pixel step `(dx, dy)` of the row, column or diagonal nearest the direction `(gx, gy)`.
+fn nearest_pixel_line(gx: f32, gy: f32) -> (isize, isize) {
+    // tan(22.5 deg): beyond it from an axis, the diagonal is nearer.
+    const TAN_22_5: f32 = 0.414_213_57;
+    let (ax, ay) = (gx.abs(), gy.abs());
+    if ay <= TAN_22_5 * ax {
+        (1, 0)
+    } else if ax <= TAN_22_5 * ay {
+        (0, 1)
+    } else {
+        (1, if (gx > 0.0) == (gy > 0.0) { 1 } else { -1 })
+    }
+}
+
+/// Keeps the edgels 8-connected to one of at least `high` contrast, and renumbers them.
+fn hysteresis(map: EdgeMap, high: f32) -> EdgeMap {
+    let (w, h) = (map.width, map.height);
+    let mut keep = vec![false; map.edgels.len()];
+    let mut stack: Vec<u32> = (0..map.edgels.len() as u32)
+        .filter(|&i| map.edgels[i as usize].contrast >= high)
+        .collect();
+    for &i in &stack {
+        keep[i as usize] = true;
+    }
+    while let Some(i) = stack.pop() {
+        let (x, y) = map.pixel_of(i);
+        for (nx, ny) in neighbours(x, y, w, h) {
+            let j = map.at_pixel[ny * w + nx];
+            if j != NO_EDGEL && !keep[j as usize] {
+                keep[j as usize] = true;
+                stack.push(j);
+            }
+        }
+    }
+    let mut out = EdgeMap::empty(w, h);
+    for (i, e) in map.edgels.iter().enumerate() {
+        if keep[i] {
+            out.push(map.pixel[i] as usize, *e);
+        }
+    }
+    out
+}
+
+/// The 8-neighbours of `(x, y)` inside a `w` x `h` image.
+pub fn neighbours(x: usize, y: usize, w: usize, h: usize) -> impl Iterator<Item = (usize, usize)> {
+    (-1i32..=1)
+        .flat_map(|dy| (-1i32..=1).map(move |dx| (dx, dy)))
+        .filter(|&d| d != (0, 0))
+        .map(move |(dx, dy)| (x as i32 + dx, y as i32 + dy))
+        .filter(move |&(nx, ny)| nx >= 0 && ny >= 0 && (nx as usize) < w && (ny as usize) < h)
+        .map(|(nx, ny)| (nx as usize, ny as usize))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An image of two grey levels split by the line `n . (p - c) = 0`, each pixel the exact
+    /// mean over its square (by 64 x 64 supersampling), so the edge sits at a known sub-pixel place.
+    fn step_image(
+        size: usize,
+        angle: f32,
+        through: (f32, f32),
+        dark: f32,
+        bright: f32,
+    ) -> GreyImage {
+        let (nx, ny) = (angle.cos(), angle.sin());
+        let pixels = (0..size * size)
+            .map(|i| {
+                let (px, py) = ((i % size) as f32, (i / size) as f32);
+                let mut bright_fraction = 0.0;
+                for sy in 0..64 {
+                    for sx in 0..64 {
+                        let (x, y) = (
+                            px - 0.5 + (sx as f32 + 0.5) / 64.0,
+                            py - 0.5 + (sy as f32 + 0.5) / 64.0,
+                        );
+                        if nx * (x - through.0) + ny * (y - through.1) > 0.0 {
+                            bright_fraction += 1.0 / 4096.0;
+                        }
+                    }
+                }
+                (dark + (bright - dark) * bright_fraction).round() as u8
+            })
+            .collect();
+        GreyImage::new(size, size, pixels).unwrap()
+    }
+
+    fn rms_distance(map: &EdgeMap, angle: f32, through: (f32, f32), size: usize) -> (f64, usize) {
+        let (nx, ny) = (angle.cos(), angle.sin());
+        let inner: Vec<f64> = map
+            .edgels
+            .iter()
+            .filter(|e| {
+                e.x > 6.0 && e.y > 6.0 && e.x < size as f32 - 7.0 && e.y < size as f32 - 7.0
+            })
+            .map(|e| (nx * (e.x - through.0) + ny * (e.y - through.1)) as f64)
+            .collect();
+        (
+            (inner.iter().map(|d| d * d).sum::<f64>() / inner.len().max(1) as f64).sqrt(),
+            inner.len(),
+        )
+    }
+
+    #[test]
+    fn the_kernel_is_a_normalised_gaussian() {
+        let k = gaussian_kernel(1.0);
+        assert_eq!(k.len(), 7);
+        assert!((k.iter().sum::<f32>() - 1.0).abs() < 1e-6);
+        assert!((k[3] / k[4] - 0.5f32.exp()).abs() < 1e-5);
+    }
+
+    #[test]
+    fn straight_edges_are_located_to_a_twentieth_of_a_pixel() {
+        for (angle, offset) in [
+            (0.0f32, 0.0f32),
+            (0.0, 0.3),
+            (0.0, 0.5),
+            (0.4, 0.17),
+            (1.1, 0.71),
+            (0.785, 0.2),
+            (2.5, 0.42),
+            (2.5, 0.1),
+        ] {
+            let through = (16.0 + offset, 16.0 + offset / 2.0);
+            let img = step_image(32, angle, through, 60.0, 180.0);
+            let map = canny(&img, &CannyParams::default());
+            let (rms, n) = rms_distance(&map, angle, through, 32);
+            assert!(n >= 15, "angle {angle}: only {n} edgels");
+            eprintln!("angle {angle}, offset {offset}: rms {rms:.4} px over {n}");
+            assert!(
+                rms < 0.05,
+                "angle {angle}, offset {offset}: rms {rms:.3} px"
+            );
+        }
+    }
+
+    #[test]
+    fn orientation_points_from_dark_to_bright_and_contrast_scales() {
+        let img = step_image(32, 0.4, (16.0, 16.0), 60.0, 180.0);
+        let map = canny(&img, &CannyParams::default());
+        let e = map
+            .edgels
+            .iter()
+            .find(|e| (e.x - 16.0).abs() < 3.0 && (e.y - 16.0).abs() < 3.0)
+            .unwrap();
+        assert!(
+            (e.orientation - 0.4).abs() < 0.05,
+            "orientation {}",
+            e.orientation
+        );
+        // A 120 grey-level step, blurred by the pixel (variance 1/12) and the Gaussian (1), seen
+        // by a central difference: 120 (Phi(1/s) - Phi(-1/s)) / 2 = 60 erf(1 / (s sqrt 2)), s^2 = 13/12,
+        // which is 39.8.
+        assert!((e.contrast - 39.8).abs() < 2.0, "contrast {}", e.contrast);
+    }
+
+    #[test]
+    fn flat_images_have_no_edges() {
+        let img = GreyImage::new(40, 40, vec![90; 1600]).unwrap();
+        assert!(canny(&img, &CannyParams::default()).edgels.is_empty());
+    }
+}
