@@ -1,6 +1,6 @@
 //! `marvin bench`: medians of repeated runs. Never a pass/fail test: the machines are shared.
 
-use clap::Subcommand;
+use clap::{Args, Subcommand};
 use sim::render::{Light, RenderScene, render_stereo};
 use sim::{Scenario, Scene};
 use std::path::PathBuf;
@@ -8,17 +8,25 @@ use std::time::Instant;
 
 #[derive(Subcommand)]
 pub enum BenchTarget {
-    /// Median time to render the stereo pair of the default scene.
-    Render {
-        #[arg(long, default_value = "worlds/widgets.toml")]
-        world: PathBuf,
-        /// Timed repetitions.
-        #[arg(long, default_value_t = 50)]
-        runs: usize,
-        /// Print `{"render": {"median_ms": X}}`.
-        #[arg(long)]
-        json: bool,
-    },
+    /// Median time to render the stereo pair of the default scene (images, depth and id maps).
+    Render(BenchArgs),
+    /// Median times of the vision stages on the default scene's left image, one thread.
+    ///
+    /// So far the front end's first stage: `canny` (Canny on one 512x512 image, edgels with
+    /// sub-pixel positions) and `strings` (linking them).
+    Vision(BenchArgs),
+}
+
+#[derive(Args)]
+pub struct BenchArgs {
+    #[arg(long, default_value = "worlds/widgets.toml")]
+    world: PathBuf,
+    /// Timed repetitions.
+    #[arg(long, default_value_t = 50)]
+    runs: usize,
+    /// Print JSON: `{"<stage>": {"median_ms": X}, ...}`.
+    #[arg(long)]
+    json: bool,
 }
 
 /// Median of `runs` timings of `f`, in milliseconds, after one warm-up run.
@@ -35,32 +43,85 @@ pub fn median_ms(runs: usize, mut f: impl FnMut()) -> f64 {
     ms[ms.len() / 2]
 }
 
+/// A settled default scene and its calibration, which every benchmark starts from.
+struct Setup {
+    scn: Scenario,
+    scene: Scene,
+    calib: mesh::StereoCalibration,
+}
+
+fn setup(world: &std::path::Path) -> anyhow::Result<Setup> {
+    let scn = Scenario::load(world)?;
+    let scene = Scene::settle(&scn, scn.world.seed);
+    let calib = sim::rig::calibration(&scn.world.cameras);
+    Ok(Setup { scn, scene, calib })
+}
+
+fn report(args: &BenchArgs, results: &[(&str, f64)], what: &str) -> anyhow::Result<()> {
+    if args.json {
+        let map: serde_json::Map<String, serde_json::Value> = results
+            .iter()
+            .map(|(k, v)| (k.to_string(), serde_json::json!({ "median_ms": v })))
+            .collect();
+        crate::emit(&serde_json::Value::Object(map).to_string())
+    } else {
+        for (k, v) in results {
+            crate::emit(&format!("{k}: {v:.3} ms (median of {}; {what})", args.runs))?;
+        }
+        Ok(())
+    }
+}
+
 pub fn run(target: BenchTarget) -> anyhow::Result<()> {
     match target {
-        BenchTarget::Render { world, runs, json } => {
-            let scn = Scenario::load(&world)?;
-            let scene = Scene::settle(&scn, scn.world.seed);
-            let calib = sim::rig::calibration(&scn.world.cameras);
-            let light = Light::from(&scn.world.light);
-            let sigma = scn.world.render.noise_sigma;
-            // Timed: shading the settled scene and rendering both cameras (images, depth, ids).
-            let median = median_ms(runs, || {
-                let rs = RenderScene::new(scene.world_meshes(&scn.library), &light);
-                std::hint::black_box(render_stereo(&rs, &calib, sigma, scn.world.seed));
+        BenchTarget::Render(args) => {
+            let s = setup(&args.world)?;
+            let light = Light::from(&s.scn.world.light);
+            let sigma = s.scn.world.render.noise_sigma;
+            let median = median_ms(args.runs, || {
+                let rs = RenderScene::new(s.scene.world_meshes(&s.scn.library), &light);
+                std::hint::black_box(render_stereo(&rs, &s.calib, sigma, s.scn.world.seed));
             });
-            if json {
-                println!(
-                    "{}",
-                    serde_json::json!({ "render": { "median_ms": median } })
-                );
-            } else {
-                println!(
-                    "render: stereo pair of {} in {median:.2} ms (median of {runs}, {} threads)",
-                    world.display(),
-                    rayon::current_num_threads()
-                );
-            }
-            Ok(())
+            let what = format!(
+                "stereo pair of {}, {} threads",
+                args.world.display(),
+                rayon::current_num_threads()
+            );
+            report(&args, &[("render", median)], &what)
+        }
+        BenchTarget::Vision(args) => {
+            let s = setup(&args.world)?;
+            let rs = RenderScene::new(
+                s.scene.world_meshes(&s.scn.library),
+                &Light::from(&s.scn.world.light),
+            );
+            let (left, _) = render_stereo(
+                &rs,
+                &s.calib,
+                s.scn.world.render.noise_sigma,
+                s.scn.world.seed,
+            );
+            let img = vision::GreyImage::new(left.width, left.height, left.image)
+                .expect("a rendered frame is whole");
+            let params = vision::CannyParams::default();
+            // Buffers reused from run to run, as a pipeline seeing frame after frame does.
+            let (mut ws, mut edges) = (
+                vision::canny::CannyWorkspace::default(),
+                vision::EdgeMap::default(),
+            );
+            let canny = median_ms(args.runs, || {
+                ws.run(&img, &params, &mut edges);
+                std::hint::black_box(&edges);
+            });
+            let map = vision::canny(&img, &params);
+            let strings = median_ms(args.runs, || {
+                std::hint::black_box(vision::link_strings(&map, crate::edges_cmd::MIN_STRING));
+            });
+            report(
+                &args,
+                &[("canny", canny), ("strings", strings)],
+                "one 512x512 image, one thread",
+            )
         }
     }
 }

@@ -1,6 +1,7 @@
 //! `marvin`: the command line of the MARVIN rebuild.
 
 mod bench;
+mod edges_cmd;
 mod render_cmd;
 
 use clap::{Parser, Subcommand};
@@ -32,6 +33,23 @@ enum Command {
         #[arg(long, default_value = "out/render")]
         out: PathBuf,
     },
+    /// Canny edges and edge strings of any image.
+    ///
+    /// Prints a summary, or with --json every edgel (`x`, `y` sub-pixel; `orientation` of the
+    /// gradient in radians; `contrast` in grey levels per pixel) and every string (edgel indices
+    /// in order).
+    Edges {
+        /// A grey (or colour, read as grey) image, e.g. out/render/left.png.
+        image: PathBuf,
+        /// Standard deviation of the Gaussian, pixels.
+        #[arg(long, default_value_t = 1.0)]
+        sigma: f32,
+        #[arg(long)]
+        json: bool,
+        /// Write the strings drawn over the image as a PNG.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
     /// Measure how fast things run; prints medians.
     Bench {
         #[command(subcommand)]
@@ -39,9 +57,25 @@ enum Command {
     },
 }
 
+/// Prints a line to stdout; a reader that went away early (`marvin ... | head`) is no error.
+pub(crate) fn emit(line: &str) -> anyhow::Result<()> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    match writeln!(out, "{line}").and_then(|()| out.flush()) {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        other => Ok(other?),
+    }
+}
+
 fn main() -> std::process::ExitCode {
     let result = match Cli::parse().command {
         Command::Render { world, seed, out } => render_cmd::run(&world, seed, &out),
+        Command::Edges {
+            image,
+            sigma,
+            json,
+            out,
+        } => edges_cmd::run(&image, sigma, json, out.as_deref()),
         Command::Bench { what } => bench::run(what),
     };
     match result {

@@ -64,14 +64,13 @@ impl EdgeMap {
         (p % self.width, p / self.width)
     }
 
-    fn empty(width: usize, height: usize) -> EdgeMap {
-        EdgeMap {
-            width,
-            height,
-            edgels: Vec::new(),
-            pixel: Vec::new(),
-            at_pixel: vec![NO_EDGEL; width * height],
-        }
+    /// Empties the map for a `width` x `height` image, keeping its allocations.
+    fn reset(&mut self, width: usize, height: usize) {
+        (self.width, self.height) = (width, height);
+        self.edgels.clear();
+        self.pixel.clear();
+        self.at_pixel.clear();
+        self.at_pixel.resize(width * height, NO_EDGEL);
     }
 
     fn push(&mut self, pixel: usize, e: Edgel) {
@@ -91,95 +90,199 @@ pub fn gaussian_kernel(sigma: f32) -> Vec<f32> {
     k.into_iter().map(|v| v / sum).collect()
 }
 
-/// Gaussian smoothing by a row pass then a column pass; borders replicate the edge pixels.
-pub fn smooth(img: &GreyImage, sigma: f32) -> Vec<f32> {
-    let (w, h) = (img.width, img.height);
-    let k = gaussian_kernel(sigma);
-    let r = k.len() / 2;
-    let mut rows = vec![0.0f32; w * h];
-    let mut padded = vec![0.0f32; w + 2 * r];
-    for y in 0..h {
-        let src = &img.pixels[y * w..(y + 1) * w];
-        for (i, p) in padded.iter_mut().enumerate() {
-            *p = src[i.saturating_sub(r).min(w - 1)] as f32;
-        }
-        let out = &mut rows[y * w..(y + 1) * w];
-        for (x, o) in out.iter_mut().enumerate() {
-            *o = k
-                .iter()
-                .zip(&padded[x..x + k.len()])
-                .map(|(a, b)| a * b)
-                .sum();
-        }
-    }
-    // Column pass, a whole row at a time so the inner loop runs along memory.
-    let mut out = vec![0.0f32; w * h];
-    for y in 0..h {
-        let dst = &mut out[y * w..(y + 1) * w];
-        for (j, kj) in k.iter().enumerate() {
-            let sy = (y + j).saturating_sub(r).min(h - 1);
-            let src = &rows[sy * w..(sy + 1) * w];
-            for (d, s) in dst.iter_mut().zip(src) {
-                *d += kj * s;
-            }
-        }
-    }
+/// Buffers Canny reuses from image to image: a pipeline that sees frame after frame should
+/// not pay for fresh pages each time.
+#[derive(Debug, Clone, Default)]
+pub struct CannyWorkspace {
+    padded: Vec<f32>,
+    rows: Vec<f32>,
+    smoothed: Vec<f32>,
+    mag: Vec<f32>,
+    keep: Vec<bool>,
+    stack: Vec<u32>,
+}
+
+/// Runs the detector with fresh buffers; see [`CannyWorkspace::run`] to reuse them.
+pub fn canny(img: &GreyImage, params: &CannyParams) -> EdgeMap {
+    let mut out = EdgeMap::default();
+    CannyWorkspace::default().run(img, params, &mut out);
     out
 }
 
-/// Runs the detector.
-pub fn canny(img: &GreyImage, params: &CannyParams) -> EdgeMap {
-    let (w, h) = (img.width, img.height);
-    let s = smooth(img, params.sigma);
-    let (mut gx, mut gy, mut mag) = (
-        vec![0.0f32; w * h],
-        vec![0.0f32; w * h],
-        vec![0.0f32; w * h],
-    );
-    for y in 1..h.saturating_sub(1) {
-        for x in 1..w - 1 {
-            let i = y * w + x;
-            let (dx, dy) = (0.5 * (s[i + 1] - s[i - 1]), 0.5 * (s[i + w] - s[i - w]));
-            gx[i] = dx;
-            gy[i] = dy;
-            mag[i] = (dx * dx + dy * dy).sqrt();
+impl CannyWorkspace {
+    /// Runs the detector on `img`, leaving the edgels in `out`.
+    pub fn run(&mut self, img: &GreyImage, params: &CannyParams, out: &mut EdgeMap) {
+        self.smooth(img, params.sigma);
+        self.gradients(img.width, img.height);
+        self.suppress_non_maxima(img.width, img.height, params.low, out);
+        self.hysteresis(out, params.high);
+    }
+
+    /// Gaussian smoothing by a row pass then a column pass; borders replicate the edge pixels.
+    fn smooth(&mut self, img: &GreyImage, sigma: f32) {
+        let (w, h) = (img.width, img.height);
+        let k = gaussian_kernel(sigma);
+        let r = k.len() / 2;
+        fit(&mut self.rows, w * h);
+        fit(&mut self.padded, w + 2 * r);
+        for y in 0..h {
+            let src = &img.pixels[y * w..(y + 1) * w];
+            let (left, rest) = self.padded.split_at_mut(r);
+            let (middle, right) = rest.split_at_mut(w);
+            left.fill(src[0] as f32);
+            right.fill(src[w - 1] as f32);
+            middle.iter_mut().zip(src).for_each(|(p, &v)| *p = v as f32);
+            let dst = &mut self.rows[y * w..(y + 1) * w];
+            // Tap by tap over the whole row, so the inner loop vectorises.
+            for (d, s) in dst.iter_mut().zip(&self.padded[..w]) {
+                *d = k[0] * s;
+            }
+            for (j, kj) in k.iter().enumerate().skip(1) {
+                for (d, s) in dst.iter_mut().zip(&self.padded[j..j + w]) {
+                    *d += kj * s;
+                }
+            }
+        }
+        fit(&mut self.smoothed, w * h);
+        for y in 0..h {
+            let dst = &mut self.smoothed[y * w..(y + 1) * w];
+            for (j, kj) in k.iter().enumerate() {
+                let sy = (y + j).saturating_sub(r).min(h - 1);
+                let src = &self.rows[sy * w..(sy + 1) * w];
+                if j == 0 {
+                    dst.iter_mut().zip(src).for_each(|(d, s)| *d = kj * s);
+                } else {
+                    dst.iter_mut().zip(src).for_each(|(d, s)| *d += kj * s);
+                }
+            }
         }
     }
-    let mut map = EdgeMap::empty(w, h);
-    // Non-maximum suppression, two pixels in from the border so interpolation stays inside.
-    for y in 2..h.saturating_sub(2) {
-        for x in 2..w.saturating_sub(2) {
-            let i = y * w + x;
-            let m0 = mag[i];
-            if m0 < params.low {
-                continue;
-            }
-            // Compare and fit along the one of the four pixel lines (row, column, diagonals)
-            // nearest the gradient: its samples are exact, no interpolation, and for a straight
-            // edge the magnitude peaks where any line across it meets it.
-            let (sx, sy) = nearest_pixel_line(gx[i], gy[i]);
-            let step = sy * w as isize + sx;
-            let (behind, ahead) = (
-                mag[(i as isize - step) as usize],
-                mag[(i as isize + step) as usize],
+
+    /// Gradient magnitudes by central differences (zero on the border).
+    fn gradients(&mut self, w: usize, h: usize) {
+        if self.mag.len() != w * h {
+            reset(&mut self.mag, w * h); // the border is never written, so stays zero
+        }
+        let s = &self.smoothed;
+        for y in 1..h.saturating_sub(1) {
+            let (up, mid, down) = (
+                &s[(y - 1) * w..y * w],
+                &s[y * w..(y + 1) * w],
+                &s[(y + 1) * w..(y + 2) * w],
             );
-            if !(m0 >= ahead && m0 > behind) {
-                continue;
+            let out = &mut self.mag[y * w + 1..(y + 1) * w - 1];
+            for (x, m) in out.iter_mut().enumerate() {
+                let (dx, dy) = (0.5 * (mid[x + 2] - mid[x]), 0.5 * (down[x + 1] - up[x + 1]));
+                *m = (dx * dx + dy * dy).sqrt();
             }
-            let offset = peak_offset(behind, m0, ahead);
-            let (dx, dy) = (offset * sx as f32, offset * sy as f32);
-            map.push(
-                i,
-                Edgel {
-                    x: x as f32 + dx,
-                    y: y as f32 + dy,
-                    orientation: gy[i].atan2(gx[i]),
-                    contrast: m0 - 0.25 * (behind - ahead) * offset,
-                },
-            );
         }
     }
-    hysteresis(map, params.high)
+
+    /// The gradient at pixel `i` (not on the border).
+    fn gradient_at(&self, i: usize, w: usize) -> (f32, f32) {
+        let s = &self.smoothed;
+        (0.5 * (s[i + 1] - s[i - 1]), 0.5 * (s[i + w] - s[i - w]))
+    }
+
+    /// Keeps pixels whose magnitude peaks across the edge, located to sub-pixel acuity.
+    fn suppress_non_maxima(&self, w: usize, h: usize, low: f32, out: &mut EdgeMap) {
+        out.reset(w, h);
+        let mag = &self.mag;
+        const RUN: usize = 16;
+        for y in 2..h.saturating_sub(2) {
+            let mut x = 2;
+            while x < w.saturating_sub(2) {
+                // Most pixels are far below threshold: skip them a run at a time.
+                let run = &mag[y * w + x..(y * w + x + RUN).min((y + 1) * w - 2)];
+                if run.len() == RUN && run.iter().fold(0.0f32, |a, &b| a.max(b)) < low {
+                    x += RUN;
+                    continue;
+                }
+                let i = y * w + x;
+                x += 1;
+                let m0 = mag[i];
+                if m0 < low {
+                    continue;
+                }
+                // Compare and fit along the one of the four pixel lines (row, column, diagonals)
+                // nearest the gradient: its samples are exact, no interpolation, and for a
+                // straight edge the magnitude peaks where any line across it meets it.
+                let (gx, gy) = self.gradient_at(i, w);
+                let (sx, sy) = nearest_pixel_line(gx, gy);
+                let step = sy * w as isize + sx;
+                let (behind, ahead) = (
+                    mag[(i as isize - step) as usize],
+                    mag[(i as isize + step) as usize],
+                );
+                if !(m0 >= ahead && m0 > behind) {
+                    continue;
+                }
+                let offset = peak_offset(behind, m0, ahead);
+                out.push(
+                    i,
+                    Edgel {
+                        x: (i % w) as f32 + offset * sx as f32,
+                        y: y as f32 + offset * sy as f32,
+                        orientation: gy.atan2(gx),
+                        contrast: m0 - 0.25 * (behind - ahead) * offset,
+                    },
+                );
+            }
+        }
+    }
+
+    /// Keeps the edgels 8-connected to one of at least `high` contrast, in place.
+    fn hysteresis(&mut self, map: &mut EdgeMap, high: f32) {
+        let (w, h) = (map.width, map.height);
+        self.keep.clear();
+        self.keep
+            .extend(map.edgels.iter().map(|e| e.contrast >= high));
+        self.stack.clear();
+        self.stack
+            .extend((0..map.edgels.len() as u32).filter(|&i| self.keep[i as usize]));
+        while let Some(i) = self.stack.pop() {
+            let (x, y) = map.pixel_of(i);
+            for (nx, ny) in neighbours(x, y, w, h) {
+                let j = map.at_pixel[ny * w + nx];
+                if j != NO_EDGEL && !self.keep[j as usize] {
+                    self.keep[j as usize] = true;
+                    self.stack.push(j);
+                }
+            }
+        }
+        let mut kept = 0;
+        for i in 0..map.edgels.len() {
+            let p = map.pixel[i] as usize;
+            if self.keep[i] {
+                map.edgels[kept] = map.edgels[i];
+                map.pixel[kept] = p as u32;
+                map.at_pixel[p] = kept as u32;
+                kept += 1;
+            } else {
+                map.at_pixel[p] = NO_EDGEL;
+            }
+        }
+        map.edgels.truncate(kept);
+        map.pixel.truncate(kept);
+    }
+}
+
+/// Gives `v` length `n` without clearing what it holds (every element is overwritten).
+fn fit(v: &mut Vec<f32>, n: usize) {
+    v.resize(n, 0.0);
+}
+
+/// Empties `v` and refills it with `n` zeros, keeping its allocation.
+fn reset(v: &mut Vec<f32>, n: usize) {
+    v.clear();
+    v.resize(n, 0.0);
+}
+
+/// Gaussian smoothing of `img` (what Canny sees), for inspection and tests.
+pub fn smooth(img: &GreyImage, sigma: f32) -> Vec<f32> {
+    let mut ws = CannyWorkspace::default();
+    ws.smooth(img, sigma);
+    ws.smoothed
 }
 
 /// Where between three equally spaced samples a peak lies, in sample spacings from the middle
@@ -212,35 +315,6 @@ fn nearest_pixel_line(gx: f32, gy: f32) -> (isize, isize) {
     } else {
         (1, if (gx > 0.0) == (gy > 0.0) { 1 } else { -1 })
     }
-}
-
-/// Keeps the edgels 8-connected to one of at least `high` contrast, and renumbers them.
-fn hysteresis(map: EdgeMap, high: f32) -> EdgeMap {
-    let (w, h) = (map.width, map.height);
-    let mut keep = vec![false; map.edgels.len()];
-    let mut stack: Vec<u32> = (0..map.edgels.len() as u32)
-        .filter(|&i| map.edgels[i as usize].contrast >= high)
-        .collect();
-    for &i in &stack {
-        keep[i as usize] = true;
-    }
-    while let Some(i) = stack.pop() {
-        let (x, y) = map.pixel_of(i);
-        for (nx, ny) in neighbours(x, y, w, h) {
-            let j = map.at_pixel[ny * w + nx];
-            if j != NO_EDGEL && !keep[j as usize] {
-                keep[j as usize] = true;
-                stack.push(j);
-            }
-        }
-    }
-    let mut out = EdgeMap::empty(w, h);
-    for (i, e) in map.edgels.iter().enumerate() {
-        if keep[i] {
-            out.push(map.pixel[i] as usize, *e);
-        }
-    }
-    out
 }
 
 /// The 8-neighbours of `(x, y)` inside a `w` x `h` image.
