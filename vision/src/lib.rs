@@ -4,12 +4,14 @@
 //! - [`image`]: grey images as plain data.
 //! - [`canny`]: Canny edges (sigma 1, separable Gaussian) located to sub-pixel acuity.
 //! - [`strings`]: edgels linked into ordered 8-connected edge strings.
+//! - [`rectify`]: edge locations mapped into a parallel-camera geometry (rows are epipolars).
 //!
-//! Still to come (the front-end issue): rectified edge locations, PMF stereo, 2D and 3D lines,
-//! slices and the Joiner; then the model matcher.
+//! Still to come (the front-end issue): PMF stereo, 2D and 3D lines, slices and the Joiner;
+//! then the model matcher.
 
 pub mod canny;
 pub mod image;
+pub mod rectify;
 pub mod strings;
 
 pub use canny::{CannyParams, EdgeMap, Edgel, canny};

@@ -1,0 +1,199 @@
+//! Rectification of edge locations (not of images): the verged cameras are replaced by a
+//! parallel pair sharing one rotation and one set of intrinsics, so that a rectified row is an
+//! epipolar line in both and disparity is `x_left - x_right` (the Middlebury convention).
+//!
+//! Rectified frame: `x` along the baseline (left centre to right centre), `z` the mean of the two
+//! optical axes made perpendicular to it, `y = z x x` (down in the image, as in the cameras).
+
+use crate::canny::Edgel;
+use mesh::{PinholeCamera, StereoCalibration};
+use nalgebra::{Matrix3, Point3, Rotation3, Vector3};
+
+/// Which camera an edge came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Side {
+    Left,
+    Right,
+}
+
+/// The parallel-camera geometry of a calibrated verged pair.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Rectification {
+    /// Focal length of both rectified cameras, pixels.
+    pub f: f64,
+    /// Principal point of both rectified cameras.
+    pub cx: f64,
+    pub cy: f64,
+    /// Distance between the camera centres, metres.
+    pub baseline: f64,
+    /// Maps left-camera (`cam`) directions into the rectified frame.
+    pub rect_from_left: Rotation3<f64>,
+    pub rect_from_right: Rotation3<f64>,
+    left_k_inv: Matrix3<f64>,
+    right_k_inv: Matrix3<f64>,
+    left_k: Matrix3<f64>,
+    right_k: Matrix3<f64>,
+}
+
+fn k_matrix(c: &PinholeCamera) -> Matrix3<f64> {
+    Matrix3::new(c.fx, 0.0, c.cx, 0.0, c.fy, c.cy, 0.0, 0.0, 1.0)
+}
+
+impl Rectification {
+    pub fn new(calib: &StereoCalibration) -> Rectification {
+        let (l, r) = (&calib.left, &calib.right);
+        let baseline_w = r.centre() - l.centre();
+        let x = baseline_w.normalize();
+        let axis = |c: &PinholeCamera| c.world_from_cam.rotation * Vector3::z();
+        let mean_axis = (axis(l) + axis(r)).normalize();
+        let z = (mean_axis - x * x.dot(&mean_axis)).normalize();
+        let y = z.cross(&x);
+        let world_from_rect = Rotation3::from_basis_unchecked(&[x, y, z]);
+        let rect_from = |c: &PinholeCamera| world_from_rect.inverse() * c.world_from_cam.rotation.to_rotation_matrix();
+        let k = |c: &PinholeCamera| k_matrix(c);
+        Rectification {
+            f: l.fx,
+            cx: l.cx,
+            cy: l.cy,
+            baseline: baseline_w.norm(),
+            rect_from_left: rect_from(l),
+            rect_from_right: rect_from(r),
+            left_k_inv: k(l).try_inverse().expect("focal lengths are positive"),
+            right_k_inv: k(r).try_inverse().expect("focal lengths are positive"),
+            left_k: k(l),
+            right_k: k(r),
+        }
+    }
+
+    fn rect_k(&self) -> Matrix3<f64> {
+        Matrix3::new(self.f, 0.0, self.cx, 0.0, self.f, self.cy, 0.0, 0.0, 1.0)
+    }
+
+    /// The homography from a camera's pixels to rectified pixels.
+    pub fn homography(&self, side: Side) -> Matrix3<f64> {
+        let (rot, k_inv) = match side {
+            Side::Left => (&self.rect_from_left, &self.left_k_inv),
+            Side::Right => (&self.rect_from_right, &self.right_k_inv),
+        };
+        self.rect_k() * rot.matrix() * k_inv
+    }
+
+    /// The homography from rectified pixels back to a camera's pixels.
+    pub fn inverse_homography(&self, side: Side) -> Matrix3<f64> {
+        let (rot, k) = match side {
+            Side::Left => (&self.rect_from_left, &self.left_k),
+            Side::Right => (&self.rect_from_right, &self.right_k),
+        };
+        k * rot.inverse().matrix() * self.rect_k().try_inverse().expect("f > 0")
+    }
+
+    /// Rectified position of pixel `(x, y)` of one camera.
+    pub fn to_rectified(&self, side: Side, x: f64, y: f64) -> (f64, f64) {
+        apply(&self.homography(side), x, y)
+    }
+
+    /// Rectifies edgels: positions, and orientations through the homography's local Jacobian.
+    pub fn rectify_edgels(&self, side: Side, edgels: &[Edgel]) -> Vec<Edgel> {
+        let h = self.homography(side);
+        edgels
+            .iter()
+            .map(|e| {
+                let (x, y) = (e.x as f64, e.y as f64);
+                let (rx, ry) = apply(&h, x, y);
+                // The edge runs along the tangent (perpendicular to the gradient); map a point a
+                // pixel along it and turn the mapped tangent back into a gradient direction.
+                let (s, c) = (e.orientation as f64).sin_cos();
+                let (tx, ty) = apply(&h, x - s, y + c);
+                // Tangent (-sin, cos) of the gradient angle: angle = atan2(-tangent.x, tangent.y).
+                let orientation = (-(tx - rx)).atan2(ty - ry);
+                Edgel { x: rx as f32, y: ry as f32, orientation: orientation as f32, contrast: e.contrast }
+            })
+            .collect()
+    }
+
+    /// The point, in the left camera's (`cam`) frame, seen at rectified left position
+    /// `(x, y)` with disparity `d`.
+    pub fn triangulate(&self, x: f64, y: f64, d: f64) -> Point3<f64> {
+        let z = self.f * self.baseline / d;
+        let in_rect = Vector3::new((x - self.cx) * z / self.f, (y - self.cy) * z / self.f, z);
+        Point3::from(self.rect_from_left.inverse() * in_rect)
+    }
+
+    /// Disparity of a point given in the left camera's frame (for evaluation and limits).
+    pub fn disparity_of(&self, p_cam: &Point3<f64>) -> f64 {
+        let in_rect = self.rect_from_left * p_cam.coords;
+        self.f * self.baseline / in_rect.z
+    }
+}
+
+fn apply(h: &Matrix3<f64>, x: f64, y: f64) -> (f64, f64) {
+    let p = h * Vector3::new(x, y, 1.0);
+    (p.x / p.z, p.y / p.z)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn verged_pair() -> StereoCalibration {
+        let cam = |x: f64| {
+            PinholeCamera::looking_at(
+                (512, 512),
+                1000.0,
+                [255.5, 255.5],
+                Point3::new(x, -0.6894, 0.5785),
+                Point3::origin(),
+                Vector3::z(),
+            )
+        };
+        StereoCalibration { left: cam(-0.1), right: cam(0.1) }
+    }
+
+    #[test]
+    fn rectified_rows_are_epipolar_lines_and_points_come_back() {
+        let calib = verged_pair();
+        let rect = Rectification::new(&calib);
+        assert!((rect.baseline - 0.2).abs() < 1e-12);
+        for p in [Point3::new(0.0, 0.0, 0.0), Point3::new(0.1, -0.05, 0.03), Point3::new(-0.12, 0.15, 0.08)] {
+            let (l, r) = (calib.left.project_world(&p).unwrap(), calib.right.project_world(&p).unwrap());
+            let (lx, ly) = rect.to_rectified(Side::Left, l.x, l.y);
+            let (rx, ry) = rect.to_rectified(Side::Right, r.x, r.y);
+            assert!((ly - ry).abs() < 1e-9, "rows differ: {ly} vs {ry}");
+            let d = lx - rx;
+            let p_cam = calib.left.world_from_cam.inverse_transform_point(&p);
+            assert!((d - rect.disparity_of(&p_cam)).abs() < 1e-9);
+            assert!((rect.triangulate(lx, ly, d) - p_cam).norm() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn inverse_homography_undoes_the_homography() {
+        let rect = Rectification::new(&verged_pair());
+        for side in [Side::Left, Side::Right] {
+            let (rx, ry) = rect.to_rectified(side, 100.0, 400.0);
+            let back = apply(&rect.inverse_homography(side), rx, ry);
+            assert!((back.0 - 100.0).abs() < 1e-9 && (back.1 - 400.0).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn edgel_orientation_follows_the_warp() {
+        let calib = verged_pair();
+        let rect = Rectification::new(&calib);
+        // A world line seen by the left camera: its rectified image must have the direction the
+        // rectified edgel's tangent claims.
+        let (a, b) = (Point3::new(-0.05, 0.02, 0.0), Point3::new(0.06, 0.07, 0.0));
+        let (pa, pb) = (calib.left.project_world(&a).unwrap(), calib.left.project_world(&b).unwrap());
+        let mid = (pa + pb.coords) / 2.0;
+        let t = (pb - pa).normalize();
+        let e = Edgel { x: mid.x as f32, y: mid.y as f32, orientation: t.x.atan2(-t.y) as f32, contrast: 10.0 };
+        let r = rect.rectify_edgels(Side::Left, &[e])[0];
+        let (ra, rb) = (rect.to_rectified(Side::Left, pa.x, pa.y), rect.to_rectified(Side::Left, pb.x, pb.y));
+        let rt = Vector3::new(rb.0 - ra.0, rb.1 - ra.1, 0.0).normalize();
+        let tangent = Vector3::new(-(r.orientation as f64).sin(), (r.orientation as f64).cos(), 0.0);
+        assert!(tangent.cross(&rt).norm() < 1e-4, "tangent {tangent} vs {rt}");
+        // The warp turns the image by a few degrees only, so the gradient keeps its sense.
+        let turn = (r.orientation - e.orientation + std::f32::consts::PI).rem_euclid(std::f32::consts::TAU) - std::f32::consts::PI;
+        assert!(turn.abs() < 0.3, "gradient turned by {turn} rad");
+    }
+}
