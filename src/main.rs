@@ -4,6 +4,8 @@ mod bench;
 mod edges_cmd;
 mod render_cmd;
 
+pub use marvin::front_end;
+
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 

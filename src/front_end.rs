@@ -1,0 +1,69 @@
+//! The vision front end on one stereo pair: what `marvin stereo` and `marvin eval vision` run.
+
+use mesh::StereoCalibration;
+use std::time::Instant;
+use vision::pmf::{Match, PmfParams, pmf};
+use vision::rectify::{Rectification, Side};
+use vision::{CannyParams, EdgeMap, EdgeString, Edgel, GreyImage, canny, link_strings};
+
+/// Strings shorter than this many edgels are dropped.
+pub const MIN_STRING: usize = 5;
+
+/// Everything the front end found in a pair, with the time each stage took.
+#[derive(Debug, Clone)]
+pub struct FrontEnd {
+    pub left: EdgeMap,
+    pub right: EdgeMap,
+    pub left_strings: Vec<EdgeString>,
+    pub left_rectified: Vec<Edgel>,
+    pub right_rectified: Vec<Edgel>,
+    pub matches: Vec<Match>,
+    pub timings_ms: Vec<(&'static str, f64)>,
+}
+
+/// The disparity range that depths from `near` to `far` metres (along the rectified axis) give.
+pub fn disparity_range(rect: &Rectification, near: f64, far: f64) -> (f32, f32) {
+    (
+        (rect.f * rect.baseline / far) as f32,
+        (rect.f * rect.baseline / near) as f32,
+    )
+}
+
+pub fn run(
+    left: &GreyImage,
+    right: &GreyImage,
+    calib: &StereoCalibration,
+    canny_params: &CannyParams,
+) -> FrontEnd {
+    let mut timings_ms = Vec::new();
+    let mut clock = Instant::now();
+    let mut lap = |name: &'static str, timings: &mut Vec<(&'static str, f64)>| {
+        timings.push((name, clock.elapsed().as_secs_f64() * 1e3));
+        clock = Instant::now();
+    };
+    let (l, r) = rayon::join(|| canny(left, canny_params), || canny(right, canny_params));
+    lap("canny", &mut timings_ms);
+    let left_strings = link_strings(&l, MIN_STRING);
+    lap("strings", &mut timings_ms);
+    let rect = Rectification::new(calib);
+    let left_rectified = rect.rectify_edgels(Side::Left, &l.edgels);
+    let right_rectified = rect.rectify_edgels(Side::Right, &r.edgels);
+    lap("rectify", &mut timings_ms);
+    let (disparity_min, disparity_max) = disparity_range(&rect, 0.6, 1.6);
+    let params = PmfParams {
+        disparity_min,
+        disparity_max,
+        ..PmfParams::default()
+    };
+    let matches = pmf(&left_rectified, &right_rectified, &left_strings, &params);
+    lap("pmf", &mut timings_ms);
+    FrontEnd {
+        left: l,
+        right: r,
+        left_strings,
+        left_rectified,
+        right_rectified,
+        matches,
+        timings_ms,
+    }
+}

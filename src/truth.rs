@@ -1,0 +1,87 @@
+//! Ground truth for evaluation code only: exact ray casts into the settled scene's triangles.
+
+use mesh::{PinholeCamera, TriMesh};
+use nalgebra::{Point3, Vector3};
+use vision::rectify::Rectification;
+
+/// The scene's surfaces as world-space triangles.
+pub struct TruthScene {
+    triangles: Vec<[Point3<f64>; 3]>,
+}
+
+impl TruthScene {
+    pub fn new(meshes: impl IntoIterator<Item = TriMesh>) -> TruthScene {
+        let mut triangles = Vec::new();
+        for m in meshes {
+            triangles.extend((0..m.triangles.len()).map(|t| m.corners(t)));
+        }
+        TruthScene { triangles }
+    }
+
+    /// Nearest hit of the ray `o + t d`: distance and triangle.
+    pub fn cast(&self, o: &Point3<f64>, d: &Vector3<f64>) -> Option<(f64, usize)> {
+        let mut best: Option<(f64, usize)> = None;
+        for (i, [a, b, c]) in self.triangles.iter().enumerate() {
+            let (e1, e2) = (b - a, c - a);
+            let p = d.cross(&e2);
+            let det = e1.dot(&p);
+            if det.abs() < 1e-15 {
+                continue;
+            }
+            let s = o - a;
+            let u = s.dot(&p) / det;
+            let q = s.cross(&e1);
+            let v = d.dot(&q) / det;
+            let t = e2.dot(&q) / det;
+            if u >= 0.0 && v >= 0.0 && u + v <= 1.0 && t > 0.0 && best.is_none_or(|(bt, _)| t < bt)
+            {
+                best = Some((t, i));
+            }
+        }
+        best
+    }
+
+    /// Where the ray through left pixel `(x, y)` meets the nearer of the surfaces on either side
+    /// of an edge with gradient direction `orientation` there: the plane of the nearest surface
+    /// hit half a pixel to a pixel either side, intersected with the ray itself.
+    pub fn edge_point(
+        &self,
+        cam: &PinholeCamera,
+        x: f64,
+        y: f64,
+        orientation: f64,
+    ) -> Option<Point3<f64>> {
+        let (s, c) = orientation.sin_cos();
+        let (o, centre_dir) = cam.ray_world(x, y);
+        let mut nearest: Option<(f64, usize)> = None;
+        for k in [-1.0, -0.5, 0.0, 0.5, 1.0] {
+            let (_, d) = cam.ray_world(x + k * c, y + k * s);
+            if let Some((t, tri)) = self.cast(&o, &d) {
+                let depth = t * d.dot(&(cam.world_from_cam.rotation * Vector3::z()));
+                if nearest.is_none_or(|(nd, _)| depth < nd) {
+                    nearest = Some((depth, tri));
+                }
+            }
+        }
+        let [a, b, cc] = self.triangles[nearest?.1];
+        let n = (b - a).cross(&(cc - a));
+        let denom = n.dot(&centre_dir);
+        if denom.abs() < 1e-12 {
+            return None;
+        }
+        Some(o + centre_dir * (n.dot(&(a - o)) / denom))
+    }
+
+    /// The true disparity at a left edgel, the nearer surface's at an occluding boundary.
+    pub fn disparity(
+        &self,
+        cam: &PinholeCamera,
+        rect: &Rectification,
+        x: f64,
+        y: f64,
+        orientation: f64,
+    ) -> Option<f64> {
+        let p = self.edge_point(cam, x, y, orientation)?;
+        Some(rect.disparity_of(&cam.world_from_cam.inverse_transform_point(&p)))
+    }
+}

@@ -1,0 +1,487 @@
+//! PMF stereo matching (Pollard, Mayhew & Frisby 1985, as TINA does it) on rectified edgels.
+//!
+//! 1. Candidates: right edgels on the left edgel's rectified raster, within the disparity range,
+//!    of compatible orientation (accepted under `orientation_accept`, rejected over
+//!    `orientation_reject`, between them only if the disparity gradient along the edge they
+//!    imply is within `orientation_gradient_limit`) and contrast (same sign across the raster,
+//!    ratio within `contrast_ratio`). Edgels running nearly along the raster are not matched:
+//!    their disparity is ill defined.
+//! 2. Support: each candidate gathers, from every other left edgel within `support_radius`, the
+//!    inverse distance to it if one of that edgel's candidates lies within the disparity-gradient
+//!    limit of this one (each neighbour counts once, with its best such candidate).
+//! 3. Winner takes all, iterated: a candidate strongest for both its left and its right edgel is
+//!    accepted and its rivals removed (uniqueness), until nothing changes.
+//! 4. Ordering along each raster, then figural continuity along left edge strings, prune what
+//!    the local choices let through.
+
+use crate::canny::Edgel;
+use crate::strings::EdgeString;
+use serde::{Deserialize, Serialize};
+
+/// PMF's parameters; they travel to the workers in a control message.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PmfParams {
+    /// Disparity range, rectified pixels (`x_left - x_right`).
+    pub disparity_min: f32,
+    pub disparity_max: f32,
+    /// Orientation differences (radians) always accepted / always rejected.
+    pub orientation_accept: f32,
+    pub orientation_reject: f32,
+    /// Disparity gradient along an edge allowed for orientation differences in between.
+    pub orientation_gradient_limit: f32,
+    /// Contrast ratio range, right over left.
+    pub contrast_ratio: (f32, f32),
+    /// Edgels whose tangent lies within this angle (radians) of the raster are not matched.
+    pub min_angle_to_raster: f32,
+    pub support_radius: f32,
+    pub disparity_gradient_limit: f32,
+    /// Largest disparity step between consecutive matched edgels of a string (figural continuity).
+    pub continuity_step: f32,
+}
+
+impl Default for PmfParams {
+    fn default() -> Self {
+        PmfParams {
+            disparity_min: 0.0,
+            disparity_max: 512.0,
+            orientation_accept: 0.3,
+            orientation_reject: 1.0,
+            orientation_gradient_limit: 1.0,
+            contrast_ratio: (0.2, 5.0),
+            min_angle_to_raster: 0.35,
+            support_radius: 20.0,
+            disparity_gradient_limit: 0.5,
+            continuity_step: 1.0,
+        }
+    }
+}
+
+/// A stereo match, at the left edgel's rectified position.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Match {
+    /// Indices into the left and right (rectified) edgel lists.
+    pub left: u32,
+    pub right: u32,
+    pub x: f32,
+    pub y: f32,
+    pub disparity: f32,
+    pub strength: f32,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Candidate {
+    right: u32,
+    disparity: f32,
+    strength: f32,
+    alive: bool,
+}
+
+fn angle_diff(a: f32, b: f32) -> f32 {
+    use std::f32::consts::{PI, TAU};
+    ((a - b + PI).rem_euclid(TAU) - PI).abs()
+}
+
+/// `dx/dy` along an edge with gradient direction `orientation` (its tangent is `(-sin, cos)`).
+fn slope(orientation: f32) -> f32 {
+    let (s, c) = orientation.sin_cos();
+    -s / c
+}
+
+/// Rectified edgels bucketed by raster (`round(y)`), for finding candidates and neighbours.
+struct Rasters {
+    first_row: i32,
+    rows: Vec<Vec<u32>>,
+}
+
+impl Rasters {
+    fn new(edgels: &[Edgel]) -> Rasters {
+        let row = |e: &Edgel| e.y.round() as i32;
+        let first_row = edgels.iter().map(row).min().unwrap_or(0);
+        let last_row = edgels.iter().map(row).max().unwrap_or(-1);
+        let mut rows = vec![Vec::new(); (last_row - first_row + 1).max(0) as usize];
+        for (i, e) in edgels.iter().enumerate() {
+            rows[(row(e) - first_row) as usize].push(i as u32);
+        }
+        Rasters { first_row, rows }
+    }
+
+    fn row(&self, r: i32) -> &[u32] {
+        let k = r - self.first_row;
+        if k < 0 || k as usize >= self.rows.len() {
+            &[]
+        } else {
+            &self.rows[k as usize]
+        }
+    }
+}
+
+/// Matches rectified left edgels to rectified right edgels.
+pub fn pmf(
+    left: &[Edgel],
+    right: &[Edgel],
+    left_strings: &[EdgeString],
+    p: &PmfParams,
+) -> Vec<Match> {
+    let (offsets, mut cands) = candidates(left, right, p);
+    let neighbours = neighbourhoods(left, p.support_radius);
+    let mut matches = winner_takes_all(
+        left,
+        right,
+        &offsets,
+        &mut cands,
+        |cands: &mut [Candidate], done: &[bool]| {
+            support(left, &offsets, cands, &neighbours, done, p)
+        },
+    );
+    enforce_ordering(&mut matches);
+    figural_continuity(&mut matches, left.len(), left_strings, p.continuity_step);
+    matches
+}
+
+fn candidates(left: &[Edgel], right: &[Edgel], p: &PmfParams) -> (Vec<usize>, Vec<Candidate>) {
+    let rasters = Rasters::new(right);
+    let mut offsets = Vec::with_capacity(left.len() + 1);
+    let mut out = Vec::new();
+    let flat = |e: &Edgel| slope(e.orientation).abs() > 1.0 / p.min_angle_to_raster.tan();
+    for l in left {
+        offsets.push(out.len());
+        if flat(l) {
+            continue;
+        }
+        let row = l.y.round() as i32;
+        for &ri in rasters
+            .row(row - 1)
+            .iter()
+            .chain(rasters.row(row))
+            .chain(rasters.row(row + 1))
+        {
+            let r = &right[ri as usize];
+            if (r.y - l.y).abs() > 0.5 || flat(r) {
+                continue;
+            }
+            // Where the right edge crosses the left edgel's raster.
+            let disparity = l.x - (r.x + (l.y - r.y) * slope(r.orientation));
+            if disparity < p.disparity_min || disparity > p.disparity_max {
+                continue;
+            }
+            // Contrast sign across the raster is the sign of the gradient's x component.
+            if (l.orientation.cos() > 0.0) != (r.orientation.cos() > 0.0) {
+                continue;
+            }
+            let ratio = r.contrast / l.contrast;
+            if ratio < p.contrast_ratio.0 || ratio > p.contrast_ratio.1 {
+                continue;
+            }
+            let turn = angle_diff(l.orientation, r.orientation);
+            let along_edge_gradient = (slope(l.orientation) - slope(r.orientation)).abs();
+            let compatible = turn < p.orientation_accept
+                || (turn <= p.orientation_reject
+                    && along_edge_gradient <= p.orientation_gradient_limit);
+            if compatible {
+                out.push(Candidate {
+                    right: ri,
+                    disparity,
+                    strength: 0.0,
+                    alive: true,
+                });
+            }
+        }
+    }
+    offsets.push(out.len());
+    (offsets, out)
+}
+
+/// For each left edgel, the other left edgels within `radius` and their distances.
+fn neighbourhoods(left: &[Edgel], radius: f32) -> Vec<Vec<(u32, f32)>> {
+    let cell = radius.max(1.0);
+    let key = |e: &Edgel| ((e.x / cell).floor() as i32, (e.y / cell).floor() as i32);
+    let mut grid: std::collections::HashMap<(i32, i32), Vec<u32>> =
+        std::collections::HashMap::new();
+    for (i, e) in left.iter().enumerate() {
+        grid.entry(key(e)).or_default().push(i as u32);
+    }
+    left.iter()
+        .enumerate()
+        .map(|(i, e)| {
+            let (cx, cy) = key(e);
+            let mut near = Vec::new();
+            for gy in cy - 1..=cy + 1 {
+                for gx in cx - 1..=cx + 1 {
+                    for &j in grid.get(&(gx, gy)).map_or(&[][..], |v| v.as_slice()) {
+                        let o = &left[j as usize];
+                        let dist = ((o.x - e.x).powi(2) + (o.y - e.y).powi(2)).sqrt();
+                        if j as usize != i && dist <= radius {
+                            near.push((j, dist));
+                        }
+                    }
+                }
+            }
+            near
+        })
+        .collect()
+}
+
+/// Each live candidate's support from the live candidates around it (left edgels in `done`
+/// already have their match and keep their strength).
+fn support(
+    left: &[Edgel],
+    offsets: &[usize],
+    cands: &mut [Candidate],
+    neighbours: &[Vec<(u32, f32)>],
+    done: &[bool],
+    p: &PmfParams,
+) {
+    let mut strength: Vec<f32> = cands.iter().map(|c| c.strength).collect();
+    for (l, near) in neighbours.iter().enumerate() {
+        if done[l] {
+            continue;
+        }
+        let (lx, ly) = (left[l].x, left[l].y);
+        for c in offsets[l]..offsets[l + 1] {
+            let d = cands[c].disparity;
+            let mut total = 0.0;
+            for &(n, dist) in near {
+                let o = &left[n as usize];
+                let supported = cands[offsets[n as usize]..offsets[n as usize + 1]]
+                    .iter()
+                    .filter(|nc| nc.alive)
+                    .any(|nc| {
+                        // Separation in the cyclopean image (halfway between left and right).
+                        let dx = (o.x - nc.disparity / 2.0) - (lx - d / 2.0);
+                        let dy = o.y - ly;
+                        (nc.disparity - d).abs()
+                            <= p.disparity_gradient_limit * (dx * dx + dy * dy).sqrt()
+                    });
+                if supported {
+                    total += 1.0 / dist;
+                }
+            }
+            strength[c] = total;
+        }
+    }
+    for (c, s) in cands.iter_mut().zip(strength) {
+        c.strength = s;
+    }
+}
+
+/// Accepts, round after round, the candidates strongest for both their edgels, removing their
+/// rivals and re-evaluating support (`support`) among what is left before each round.
+fn winner_takes_all(
+    left: &[Edgel],
+    right: &[Edgel],
+    offsets: &[usize],
+    cands: &mut [Candidate],
+    mut support: impl FnMut(&mut [Candidate], &[bool]),
+) -> Vec<Match> {
+    // Candidates of each right edgel, to find a candidate's rivals there.
+    let mut by_right: Vec<Vec<(u32, usize)>> = vec![Vec::new(); right.len()];
+    for l in 0..left.len() {
+        for c in offsets[l]..offsets[l + 1] {
+            by_right[cands[c].right as usize].push((l as u32, c));
+        }
+    }
+    let strongest = |cs: &[Candidate], ids: &mut dyn Iterator<Item = usize>| -> Option<usize> {
+        ids.filter(|&c| cs[c].alive)
+            .max_by(|&a, &b| cs[a].strength.total_cmp(&cs[b].strength).then(b.cmp(&a)))
+    };
+    let mut matches = Vec::new();
+    let mut matched_left = vec![false; left.len()];
+    loop {
+        support(cands, &matched_left);
+        let mut accepted = Vec::new();
+        for l in 0..left.len() {
+            if matched_left[l] {
+                continue;
+            }
+            let Some(best) = strongest(cands, &mut (offsets[l]..offsets[l + 1])) else {
+                continue;
+            };
+            let r = cands[best].right as usize;
+            if strongest(cands, &mut by_right[r].iter().map(|&(_, c)| c)) == Some(best) {
+                accepted.push((l, best));
+            }
+        }
+        if accepted.is_empty() {
+            return matches;
+        }
+        for (l, best) in accepted {
+            let r = cands[best].right as usize;
+            // The winner stays alive: it supports its neighbours in later rounds.
+            for c in (offsets[l]..offsets[l + 1]).chain(by_right[r].iter().map(|&(_, c)| c)) {
+                cands[c].alive = c == best;
+            }
+            matched_left[l] = true;
+            let e = &left[l];
+            matches.push(Match {
+                left: l as u32,
+                right: r as u32,
+                x: e.x,
+                y: e.y,
+                disparity: cands[best].disparity,
+                strength: cands[best].strength,
+            });
+        }
+    }
+}
+
+/// Along each raster, matches must keep their left-to-right order in both images: of two that
+/// cross, the weaker goes.
+fn enforce_ordering(matches: &mut Vec<Match>) {
+    let mut order: Vec<usize> = (0..matches.len()).collect();
+    order.sort_by(|&a, &b| matches[b].strength.total_cmp(&matches[a].strength));
+    let mut kept: std::collections::HashMap<i32, Vec<(f32, f32)>> =
+        std::collections::HashMap::new();
+    let mut keep = vec![false; matches.len()];
+    for i in order {
+        let m = &matches[i];
+        let row = kept.entry(m.y.round() as i32).or_default();
+        let xr = m.x - m.disparity;
+        let crosses = row.iter().any(|&(ol, or)| (ol - m.x) * (or - xr) < 0.0);
+        if !crosses {
+            row.push((m.x, xr));
+            keep[i] = true;
+        }
+    }
+    let mut k = keep.into_iter();
+    matches.retain(|_| k.next().unwrap_or(false));
+}
+
+/// Keeps a match only if a matched edgel within two steps along its left string agrees with it
+/// in disparity (within `step` per string step): isolated matches are usually wrong.
+fn figural_continuity(matches: &mut Vec<Match>, n_left: usize, strings: &[EdgeString], step: f32) {
+    let mut disparity_of = vec![f32::NAN; n_left];
+    for m in matches.iter() {
+        disparity_of[m.left as usize] = m.disparity;
+    }
+    let mut continuous = vec![false; n_left];
+    for s in strings {
+        let e = &s.edgels;
+        for k in 0..e.len() {
+            let d = disparity_of[e[k] as usize];
+            if d.is_nan() {
+                continue;
+            }
+            let lo = k.saturating_sub(2);
+            let hi = (k + 2).min(e.len() - 1);
+            continuous[e[k] as usize] = (lo..=hi).any(|j| {
+                let dj = disparity_of[e[j] as usize];
+                j != k && !dj.is_nan() && (dj - d).abs() <= step * (j.abs_diff(k) as f32)
+            });
+        }
+    }
+    matches.retain(|m| continuous[m.left as usize]);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Edgels along a straight edge from `(x0, y0)` running `dx_per_row` per raster, one a row.
+    fn edge(x0: f32, y0: i32, rows: i32, dx_per_row: f32, bright_right: bool) -> Vec<Edgel> {
+        // Tangent (dx, 1) per row; gradient perpendicular, pointing to the bright side.
+        let t = (dx_per_row, 1.0f32);
+        let g = if bright_right {
+            (t.1, -t.0)
+        } else {
+            (-t.1, t.0)
+        };
+        (0..rows)
+            .map(|k| Edgel {
+                x: x0 + dx_per_row * k as f32,
+                y: (y0 + k) as f32,
+                orientation: g.1.atan2(g.0),
+                contrast: 20.0,
+            })
+            .collect()
+    }
+
+    fn strings_of(lengths: &[usize]) -> Vec<EdgeString> {
+        let mut start = 0u32;
+        lengths
+            .iter()
+            .map(|&n| {
+                let s = EdgeString {
+                    edgels: (start..start + n as u32).collect(),
+                };
+                start += n as u32;
+                s
+            })
+            .collect()
+    }
+
+    #[test]
+    fn each_edge_finds_its_own_disparity_among_lookalikes() {
+        // Three parallel edges of the same contrast: every left edge has three candidates in the
+        // range, and only the true disparities make the neighbourhood consistent.
+        let truth = [(100.0, 40.0), (118.0, 43.0), (140.0, 41.0)];
+        let mut left = Vec::new();
+        let mut right = Vec::new();
+        for &(x, d) in &truth {
+            left.extend(edge(x, 10, 30, 0.2, true));
+            right.extend(edge(x - d, 10, 30, 0.2, true));
+        }
+        // A crossing edge ties the three together, as an object's corners do.
+        left.extend(edge(95.0, 41, 10, 5.0, false));
+        right.extend(edge(95.0 - 41.0, 41, 10, 5.0, false));
+        let strings = strings_of(&[30, 30, 30, 10]);
+        let p = PmfParams {
+            disparity_min: 20.0,
+            disparity_max: 80.0,
+            ..PmfParams::default()
+        };
+        let matches = pmf(&left, &right, &strings, &p);
+        assert!(
+            matches.len() >= 80,
+            "only {} of 90 edgels matched",
+            matches.len()
+        );
+        for m in &matches {
+            let expected = if m.left < 90 {
+                truth[m.left as usize / 30].1
+            } else {
+                41.0
+            };
+            assert!(
+                (m.disparity - expected).abs() < 1e-3,
+                "edgel {} matched at {} not {expected}",
+                m.left,
+                m.disparity
+            );
+        }
+        // Uniqueness: no right edgel is used twice.
+        let mut rights: Vec<u32> = matches.iter().map(|m| m.right).collect();
+        rights.sort();
+        rights.dedup();
+        assert_eq!(rights.len(), matches.len());
+    }
+
+    #[test]
+    fn opposite_contrast_and_horizontal_edges_never_match() {
+        let left = edge(100.0, 10, 20, 0.0, true);
+        let flipped = edge(60.0, 10, 20, 0.0, false);
+        let strings = strings_of(&[20]);
+        let p = PmfParams {
+            disparity_min: 20.0,
+            disparity_max: 80.0,
+            ..PmfParams::default()
+        };
+        assert!(pmf(&left, &flipped, &strings, &p).is_empty());
+        // An edge along the rasters has no defined disparity.
+        let flat: Vec<Edgel> = (0..20)
+            .map(|k| Edgel {
+                x: 100.0 + k as f32,
+                y: 10.0,
+                orientation: std::f32::consts::FRAC_PI_2,
+                contrast: 20.0,
+            })
+            .collect();
+        let flat_right: Vec<Edgel> = flat
+            .iter()
+            .map(|e| Edgel {
+                x: e.x - 40.0,
+                ..*e
+            })
+            .collect();
+        assert!(pmf(&flat, &flat_right, &strings, &p).is_empty());
+    }
+}
