@@ -29,10 +29,43 @@ pub fn disparity_range(rect: &Rectification, near: f64, far: f64) -> (f32, f32) 
     )
 }
 
+/// What the front end knows of the cameras.
+#[derive(Debug, Clone)]
+pub enum Geometry {
+    /// A calibrated verged pair: edges are rectified, disparities limited to depths of
+    /// [`WORKSPACE_DEPTH_M`].
+    Calibrated(StereoCalibration),
+    /// Images already rectified (rows are epipolars), with the disparity range to search.
+    Rectified {
+        disparity_min: f32,
+        disparity_max: f32,
+    },
+}
+
+/// Depths (metres, along the rectified axis) the calibrated front end searches: MARVIN's
+/// workspace, a table 0.6 to 1.6 m from the cameras.
+pub const WORKSPACE_DEPTH_M: (f64, f64) = (0.6, 1.6);
+
+/// The front end on a calibrated pair.
 pub fn run(
     left: &GreyImage,
     right: &GreyImage,
     calib: &StereoCalibration,
+    canny_params: &CannyParams,
+) -> FrontEnd {
+    run_with(
+        left,
+        right,
+        &Geometry::Calibrated(calib.clone()),
+        canny_params,
+    )
+}
+
+/// The front end: Canny on both images, strings of the left, rectification, PMF.
+pub fn run_with(
+    left: &GreyImage,
+    right: &GreyImage,
+    geometry: &Geometry,
     canny_params: &CannyParams,
 ) -> FrontEnd {
     let mut timings_ms = Vec::new();
@@ -45,11 +78,26 @@ pub fn run(
     lap("canny", &mut timings_ms);
     let left_strings = link_strings(&l, MIN_STRING);
     lap("strings", &mut timings_ms);
-    let rect = Rectification::new(calib);
-    let left_rectified = rect.rectify_edgels(Side::Left, &l.edgels);
-    let right_rectified = rect.rectify_edgels(Side::Right, &r.edgels);
+    let (left_rectified, right_rectified, (disparity_min, disparity_max)) = match geometry {
+        Geometry::Calibrated(calib) => {
+            let rect = Rectification::new(calib);
+            let range = disparity_range(&rect, WORKSPACE_DEPTH_M.0, WORKSPACE_DEPTH_M.1);
+            (
+                rect.rectify_edgels(Side::Left, &l.edgels),
+                rect.rectify_edgels(Side::Right, &r.edgels),
+                range,
+            )
+        }
+        Geometry::Rectified {
+            disparity_min,
+            disparity_max,
+        } => (
+            l.edgels.clone(),
+            r.edgels.clone(),
+            (*disparity_min, *disparity_max),
+        ),
+    };
     lap("rectify", &mut timings_ms);
-    let (disparity_min, disparity_max) = disparity_range(&rect, 0.6, 1.6);
     let params = PmfParams {
         disparity_min,
         disparity_max,

@@ -2,9 +2,9 @@
 
 mod bench;
 mod edges_cmd;
+mod eval_cmd;
 mod render_cmd;
-
-pub use marvin::front_end;
+mod stereo_cmd;
 
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
@@ -52,6 +52,37 @@ enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// The vision front end on a stereo pair, rendered or real: Canny, edge strings,
+    /// rectification, PMF stereo.
+    ///
+    /// Prints a summary, or with --json the `matches` (left edgel `x`, `y` in the left image and
+    /// `disparity` in rectified pixels) and per-stage `timings_ms`. 2D and 3D lines are not
+    /// built yet.
+    Stereo {
+        #[arg(long)]
+        left: PathBuf,
+        #[arg(long)]
+        right: PathBuf,
+        /// Calibration: a scene.json from `marvin render`, or a bare {left, right} file.
+        #[arg(long, conflicts_with = "rectified")]
+        calib: Option<PathBuf>,
+        /// The images are already rectified (rows are epipolar lines); needs --disparity.
+        #[arg(long, requires = "disparity")]
+        rectified: bool,
+        /// Disparity range MIN:MAX in pixels, for --rectified images.
+        #[arg(long, value_parser = stereo_cmd::parse_range)]
+        disparity: Option<(f32, f32)>,
+        #[arg(long)]
+        json: bool,
+        /// Folder for debug images (matches.png: matched edgels coloured by disparity).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Run seeded scenes through the pipeline and compare with ground truth.
+    Eval {
+        #[command(subcommand)]
+        what: eval_cmd::EvalTarget,
+    },
     /// Measure how fast things run; prints medians.
     Bench {
         #[command(subcommand)]
@@ -78,6 +109,17 @@ fn main() -> std::process::ExitCode {
             json,
             out,
         } => edges_cmd::run(&image, sigma, json, out.as_deref()),
+        Command::Stereo {
+            left,
+            right,
+            calib,
+            rectified,
+            disparity,
+            json,
+            out,
+        } => stereo_cmd::geometry(calib.as_deref(), rectified, disparity)
+            .and_then(|g| stereo_cmd::run(&left, &right, &g, json, out.as_deref())),
+        Command::Eval { what } => eval_cmd::run(what),
         Command::Bench { what } => bench::run(what),
     };
     match result {

@@ -1,0 +1,146 @@
+//! End to end: `marvin edges` and `marvin stereo` on rendered images, and their errors.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn marvin(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_marvin"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// A rendered default scene, made once per test binary run.
+fn rendered() -> PathBuf {
+    static ONCE: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    ONCE.get_or_init(|| {
+        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli_vision_scene");
+        let out = marvin(&[
+            "render",
+            "worlds/widgets.toml",
+            "--seed",
+            "3",
+            "--out",
+            dir.to_str().unwrap(),
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        dir
+    })
+    .clone()
+}
+
+fn path(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+#[test]
+fn edges_json_lists_edgels_and_strings() {
+    let left = rendered().join("left.png");
+    let out = marvin(&["edges", path(&left), "--json"]);
+    assert!(out.status.success());
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let edgels = doc["edgels"].as_array().unwrap();
+    assert!(edgels.len() > 1000);
+    for key in ["x", "y", "orientation", "contrast"] {
+        assert!(edgels[0][key].is_number(), "edgel lacks {key}");
+    }
+    let strings = doc["strings"].as_array().unwrap();
+    assert!(!strings.is_empty());
+    assert!(strings.iter().all(|s| s.as_array().unwrap().len() >= 5));
+}
+
+#[test]
+fn stereo_json_lists_matches_with_disparities_in_range() {
+    let dir = rendered();
+    let out = marvin(&[
+        "stereo",
+        "--left",
+        path(&dir.join("left.png")),
+        "--right",
+        path(&dir.join("right.png")),
+        "--calib",
+        path(&dir.join("scene.json")),
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let matches = doc["matches"].as_array().unwrap();
+    assert!(matches.len() > 500, "{} matches", matches.len());
+    // 0.2 m baseline, f = 1000 px, the workspace 0.6-1.6 m away.
+    assert!(
+        matches
+            .iter()
+            .all(|m| (125.0..=334.0).contains(&m["disparity"].as_f64().unwrap()))
+    );
+}
+
+#[test]
+fn stereo_refuses_bad_input_and_says_which() {
+    let dir = rendered();
+    let (left, right, calib) = (
+        dir.join("left.png"),
+        dir.join("right.png"),
+        dir.join("scene.json"),
+    );
+    let small = dir.join("small.png");
+    image::GrayImage::new(100, 80).save(&small).unwrap();
+    let cases: Vec<(Vec<&str>, String)> = vec![
+        (
+            vec![
+                "--left",
+                path(&left),
+                "--right",
+                path(&small),
+                "--calib",
+                path(&calib),
+            ],
+            format!("{} is 100x80", path(&small)),
+        ),
+        (
+            vec![
+                "--left",
+                path(&left),
+                "--right",
+                "/no/such.png",
+                "--calib",
+                path(&calib),
+            ],
+            "/no/such.png".into(),
+        ),
+        (
+            vec![
+                "--left",
+                path(&left),
+                "--right",
+                path(&right),
+                "--calib",
+                path(&left),
+            ],
+            path(&left).to_string(),
+        ),
+        (
+            vec!["--left", path(&left), "--right", path(&right)],
+            "--calib".into(),
+        ),
+    ];
+    for (args, expected) in cases {
+        let mut all = vec!["stereo"];
+        all.extend(args);
+        let out = marvin(&all);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{all:?} should fail");
+        assert!(
+            stderr.contains(&expected),
+            "{all:?}: stderr {stderr} should mention {expected}"
+        );
+    }
+}
