@@ -69,16 +69,16 @@ pub fn run(
             r.height
         );
     }
-    if let Geometry::Calibrated(c) = geometry {
-        if (c.left.width as usize, c.left.height as usize) != (l.width, l.height) {
-            bail!(
-                "the calibration is for {}x{} images, these are {}x{}",
-                c.left.width,
-                c.left.height,
-                l.width,
-                l.height
-            );
-        }
+    if let Geometry::Calibrated(c) = geometry
+        && (c.left.width as usize, c.left.height as usize) != (l.width, l.height)
+    {
+        bail!(
+            "the calibration is for {}x{} images, these are {}x{}",
+            c.left.width,
+            c.left.height,
+            l.width,
+            l.height
+        );
     }
     let fe = run_with(&l, &r, geometry, &CannyParams::default());
     if json {
