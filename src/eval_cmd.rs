@@ -1,7 +1,7 @@
 //! `marvin eval`: seeded scenes run through the pipeline and compared with ground truth.
 
 use clap::Subcommand;
-use marvin::eval::{DisparityStats, disparity_stats};
+use marvin::eval::{DisparityStats, LineStats, disparity_stats, line_stats};
 use marvin::truth::TruthScene;
 use sim::render::{Light, RenderScene, render_stereo};
 use sim::{Scenario, Scene};
@@ -39,6 +39,7 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
     let calib = sim::rig::calibration(&scn.world.cameras);
     let light = Light::from(&scn.world.light);
     let mut total = DisparityStats::default();
+    let mut lines = LineStats::default();
     let mut timings: BTreeMap<&'static str, Vec<f64>> = BTreeMap::new();
     for k in 0..scenes {
         let s = seed + k;
@@ -56,14 +57,19 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
         let fe = marvin::front_end::run(&left, &right, &calib, &vision::CannyParams::default());
         let truth = TruthScene::new(scene.world_meshes(&scn.library).map(|(_, m)| m));
         let stats = disparity_stats(&fe, &truth, &calib);
+        let line = line_stats(&fe, &scene, &scn.library, &calib, &l.depth);
         eprintln!(
-            "scene {}/{scenes} (seed {s}): {} matches, {:.3} within 0.5 px, {:.3} wrong",
+            "scene {}/{scenes} (seed {s}): {} matches, {:.3} within 0.5 px, {:.3} wrong; {} 3D lines, ends {:.2} mm median, coverage {:.2}",
             k + 1,
             stats.evaluated,
             stats.within_fraction(),
-            stats.wrong_fraction()
+            stats.wrong_fraction(),
+            line.endpoint_err_mm.len() / 2,
+            line.endpoint_quantile(0.5),
+            line.coverage()
         );
         total.add(&stats);
+        lines.add(&line);
         for (name, ms) in fe.timings_ms {
             timings.entry(name).or_default().push(ms);
         }
@@ -80,6 +86,10 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
         "disparity_within_0_5px": total.within_fraction(),
         "wrong_matches": total.wrong_fraction(),
         "matches_per_scene": total.evaluated as f64 / scenes.max(1) as f64,
+        "endpoint_err_mm_median": lines.endpoint_quantile(0.5),
+        "endpoint_err_mm_p90": lines.endpoint_quantile(0.9),
+        "coverage": lines.coverage(),
+        "lines3d_per_scene": lines.endpoint_err_mm.len() as f64 / 2.0 / scenes.max(1) as f64,
         "timings_ms": medians,
     });
     if json {

@@ -2,6 +2,8 @@
 
 use mesh::StereoCalibration;
 use std::time::Instant;
+use vision::lines2d::{Line2, Lines2dParams, fit_lines};
+use vision::lines3d::{Line3, Lines3dParams, fit_lines3d};
 use vision::pmf::{Match, PmfParams, pmf};
 use vision::rectify::{Rectification, Side};
 use vision::{CannyParams, EdgeMap, EdgeString, Edgel, GreyImage, canny, link_strings};
@@ -18,6 +20,10 @@ pub struct FrontEnd {
     pub left_rectified: Vec<Edgel>,
     pub right_rectified: Vec<Edgel>,
     pub matches: Vec<Match>,
+    /// 2D lines of the left image, in rectified coordinates.
+    pub lines2d: Vec<Line2>,
+    /// 3D lines in the `cam` frame (none without a calibration).
+    pub lines3d: Vec<Line3>,
     pub timings_ms: Vec<(&'static str, f64)>,
 }
 
@@ -78,24 +84,29 @@ pub fn run_with(
     lap("canny", &mut timings_ms);
     let left_strings = link_strings(&l, MIN_STRING);
     lap("strings", &mut timings_ms);
-    let (left_rectified, right_rectified, (disparity_min, disparity_max)) = match geometry {
-        Geometry::Calibrated(calib) => {
-            let rect = Rectification::new(calib);
-            let range = disparity_range(&rect, WORKSPACE_DEPTH_M.0, WORKSPACE_DEPTH_M.1);
-            (
-                rect.rectify_edgels(Side::Left, &l.edgels),
-                rect.rectify_edgels(Side::Right, &r.edgels),
-                range,
-            )
+    let rect = match geometry {
+        Geometry::Calibrated(calib) => Some(Rectification::new(calib)),
+        Geometry::Rectified { .. } => None,
+    };
+    let (left_rectified, right_rectified, (disparity_min, disparity_max)) = match (&rect, geometry)
+    {
+        (Some(rect), _) => {
+            let range = disparity_range(rect, WORKSPACE_DEPTH_M.0, WORKSPACE_DEPTH_M.1);
+            let left = rect.rectify_edgels(Side::Left, &l.edgels);
+            (left, rect.rectify_edgels(Side::Right, &r.edgels), range)
         }
-        Geometry::Rectified {
-            disparity_min,
-            disparity_max,
-        } => (
+        (
+            None,
+            Geometry::Rectified {
+                disparity_min,
+                disparity_max,
+            },
+        ) => (
             l.edgels.clone(),
             r.edgels.clone(),
             (*disparity_min, *disparity_max),
         ),
+        (None, Geometry::Calibrated(_)) => unreachable!("a calibrated pair has a rectification"),
     };
     lap("rectify", &mut timings_ms);
     let params = PmfParams {
@@ -105,6 +116,13 @@ pub fn run_with(
     };
     let matches = pmf(&left_rectified, &right_rectified, &left_strings, &params);
     lap("pmf", &mut timings_ms);
+    let lines2d = fit_lines(&left_rectified, &left_strings, &Lines2dParams::default());
+    lap("geom2d", &mut timings_ms);
+    let lines3d = rect.as_ref().map_or_else(Vec::new, |rect| {
+        let p = Lines3dParams::default();
+        fit_lines3d(&lines2d, &left_strings, &left_rectified, &matches, rect, &p)
+    });
+    lap("geom3d", &mut timings_ms);
     FrontEnd {
         left: l,
         right: r,
@@ -112,6 +130,8 @@ pub fn run_with(
         left_rectified,
         right_rectified,
         matches,
+        lines2d,
+        lines3d,
         timings_ms,
     }
 }

@@ -6,12 +6,15 @@
 //! - [`strings`]: edgels linked into ordered 8-connected edge strings.
 //! - [`rectify`]: edge locations mapped into a parallel-camera geometry (rows are epipolars).
 //! - [`pmf`]: PMF stereo matching of rectified edgels.
+//! - [`lines2d`]: strings cut into straight lines by recursive fit and segment.
+//! - [`lines3d`]: disparity fitted along each 2D line, its ends triangulated into 3D segments.
 //!
-//! Still to come (the front-end issue): 2D and 3D lines, slices and the Joiner; then the model
-//! matcher.
+//! Still to come (the front-end issue): slices and the Joiner; then the model matcher.
 
 pub mod canny;
 pub mod image;
+pub mod lines2d;
+pub mod lines3d;
 pub mod pmf;
 pub mod rectify;
 pub mod strings;
