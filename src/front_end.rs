@@ -123,6 +123,18 @@ pub fn run_with(
         fit_lines3d(&lines2d, &left_strings, &left_rectified, &matches, rect, &p)
     });
     lap("geom3d", &mut timings_ms);
+    // What the front end vouches for: the matches that lie on a 3D line and agree with it.
+    // Matches off every line (near corners, on short or flat strings, isolated) are dropped.
+    let mut matches = matches;
+    if rect.is_some() {
+        let mut on_line = vec![false; left_rectified.len()];
+        for l in &lines3d {
+            for &i in &l.inliers {
+                on_line[i as usize] = true;
+            }
+        }
+        matches.retain(|m| on_line[m.left as usize]);
+    }
     FrontEnd {
         left: l,
         right: r,

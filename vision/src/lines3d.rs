@@ -47,6 +47,9 @@ pub struct Line3 {
     /// The 2D line it came from (index into the 2D lines) and how many matches carried it.
     pub line2: u32,
     pub matches: u32,
+    /// The left edgels whose matches agree with the fit (the inliers).
+    #[serde(skip)]
+    pub inliers: Vec<u32>,
 }
 
 impl Line3 {
@@ -108,30 +111,34 @@ pub fn fit_lines3d(
             let e = &left_rect[i as usize];
             ((e.x - line.start[0]) * dir[0] + (e.y - line.start[1]) * dir[1]) as f64
         };
-        let mut points: Vec<(f64, f64)> = string[line.first as usize..=line.last as usize]
+        let mut points: Vec<(f64, f64, u32)> = string[line.first as usize..=line.last as usize]
             .iter()
             .filter(|&&i| !disparity[i as usize].is_nan())
-            .map(|&i| (along(i), disparity[i as usize]))
+            .map(|&i| (along(i), disparity[i as usize], i))
             .collect();
+        let pairs =
+            |pts: &[(f64, f64, u32)]| pts.iter().map(|&(s, d, _)| (s, d)).collect::<Vec<_>>();
         // Two passes: fit, drop outliers, fit again.
         let mut fit = None;
         for _ in 0..2 {
             if points.len() < p.min_matches {
                 break;
             }
-            fit = linear_fit(&points);
+            fit = linear_fit(&pairs(&points));
             let Some((alpha, beta, ..)) = fit else { break };
-            points.retain(|&(s, d)| (d - alpha - beta * s).abs() <= p.max_residual as f64);
+            points.retain(|&(s, d, _)| (d - alpha - beta * s).abs() <= p.max_residual as f64);
         }
         if points.len() < p.min_matches {
             continue;
         }
-        let Some((alpha, beta, var, ms, sss)) = linear_fit(&points).or(fit) else {
+        let Some((alpha, beta, var, ms, sss)) = linear_fit(&pairs(&points)).or(fit) else {
             continue;
         };
         let (lo, hi) = points
             .iter()
-            .fold((f64::MAX, f64::MIN), |(a, b), &(s, _)| (a.min(s), b.max(s)));
+            .fold((f64::MAX, f64::MIN), |(a, b), &(s, ..)| {
+                (a.min(s), b.max(s))
+            });
         if (hi - lo) < p.min_span as f64 * len || beta.abs() > p.max_slope as f64 {
             continue;
         }
@@ -163,6 +170,7 @@ pub fn fit_lines3d(
             sigma_b,
             line2: li as u32,
             matches: points.len() as u32,
+            inliers: points.iter().map(|&(.., i)| i).collect(),
         });
     }
     out
