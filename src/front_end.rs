@@ -3,7 +3,7 @@
 use mesh::StereoCalibration;
 use std::time::Instant;
 use vision::lines2d::{Line2, Lines2dParams, fit_lines};
-use vision::lines3d::{Line3, Lines3dParams, fit_lines3d};
+use vision::lines3d::{Line3, Lines3dParams, complete_flat_lines, fit_lines3d};
 use vision::pmf::{Match, PmfParams, pmf};
 use vision::rectify::{Rectification, Side};
 use vision::{CannyParams, EdgeMap, EdgeString, Edgel, GreyImage, canny, link_strings};
@@ -120,7 +120,9 @@ pub fn run_with(
     lap("geom2d", &mut timings_ms);
     let lines3d = rect.as_ref().map_or_else(Vec::new, |rect| {
         let p = Lines3dParams::default();
-        fit_lines3d(&lines2d, &left_strings, &left_rectified, &matches, rect, &p)
+        let mut lines3d = fit_lines3d(&lines2d, &left_strings, &left_rectified, &matches, rect, &p);
+        complete_flat_lines(&lines2d, &left_strings, &mut lines3d, rect, &p, 6);
+        lines3d
     });
     lap("geom3d", &mut timings_ms);
     // What the front end vouches for: the matches that lie on a 3D line and agree with it.

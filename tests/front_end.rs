@@ -36,3 +36,48 @@ fn disparities_of_an_uncluttered_scene_are_right() {
     );
     assert_eq!(stats.wrong, 0, "wrong matches in a scene without ambiguity");
 }
+
+/// The front-end issue's acceptance figures, over 5 seeded clutter scenes of the default world
+/// (`marvin eval vision worlds/widgets.toml --scenes 20` reports the same over 20).
+#[test]
+fn the_default_world_meets_the_front_end_targets() {
+    let scn =
+        Scenario::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("worlds/widgets.toml")).unwrap();
+    let calib = sim::rig::calibration(&scn.world.cameras);
+    let light = Light::from(&scn.world.light);
+    let (mut disparities, mut lines) = (
+        DisparityStats::default(),
+        marvin::eval::LineStats::default(),
+    );
+    for seed in 1..=5 {
+        let scene = Scene::settle(&scn, seed);
+        let rs = RenderScene::new(scene.world_meshes(&scn.library), &light);
+        let (l, r) = render_stereo(&rs, &calib, scn.world.render.noise_sigma, seed);
+        let left = vision::GreyImage::new(l.width, l.height, l.image.clone()).unwrap();
+        let right = vision::GreyImage::new(r.width, r.height, r.image).unwrap();
+        let fe = marvin::front_end::run(&left, &right, &calib, &vision::CannyParams::default());
+        let truth = TruthScene::new(scene.world_meshes(&scn.library).map(|(_, m)| m));
+        disparities.add(&disparity_stats(&fe, &truth, &calib));
+        lines.add(&marvin::eval::line_stats(
+            &fe,
+            &scene,
+            &scn.library,
+            &calib,
+            &l.depth,
+        ));
+    }
+    let (within, wrong) = (disparities.within_fraction(), disparities.wrong_fraction());
+    let (median, p90, coverage) = (
+        lines.endpoint_quantile(0.5),
+        lines.endpoint_quantile(0.9),
+        lines.coverage(),
+    );
+    eprintln!(
+        "within 0.5 px {within:.3}, wrong {wrong:.3}, ends {median:.2} / {p90:.2} mm, coverage {coverage:.3}"
+    );
+    assert!(within >= 0.95, "disparity within 0.5 px: {within:.3}");
+    assert!(wrong <= 0.02, "wrong matches: {wrong:.3}");
+    assert!(median <= 1.0, "endpoint error median {median:.2} mm");
+    assert!(p90 <= 3.0, "endpoint error p90 {p90:.2} mm");
+    assert!(coverage >= 0.7, "coverage {coverage:.3}");
+}

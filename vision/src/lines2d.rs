@@ -21,7 +21,7 @@ impl Default for Lines2dParams {
     fn default() -> Self {
         Lines2dParams {
             tolerance: 0.8,
-            min_edgels: 8,
+            min_edgels: 6,
         }
     }
 }
