@@ -157,17 +157,6 @@ pub fn line_stats(
             }
             *run = (0.0, 0.0, 0.0);
         };
-        if let (Ok(v), Some(pa), Some(pb)) = (
-            std::env::var("COVER_ANGLE"),
-            cam.project_cam(ea),
-            cam.project_cam(eb),
-        ) {
-            let ang = ((pb.y - pa.y).abs() / (pb - pa).norm()).asin().to_degrees();
-            let lim: f64 = v.parse().unwrap();
-            if (lim > 0.0 && ang < lim) || (lim < 0.0 && ang >= -lim) {
-                continue;
-            }
-        }
         for k in 0..steps {
             let p = ea + (eb - ea) * ((k as f64 + 0.5) / steps as f64);
             let step_m = (eb - ea).norm() / steps as f64;
