@@ -64,7 +64,7 @@ pub fn run(image: &Path, sigma: f32, json: bool, out: Option<&Path>) -> anyhow::
 }
 
 /// The image dimmed, each string's edgels in a colour of its own.
-fn draw(img: &GreyImage, strings: &[EdgeString], edgels: &[Edgel]) -> RgbImage {
+pub fn draw(img: &GreyImage, strings: &[EdgeString], edgels: &[Edgel]) -> RgbImage {
     let mut out = RgbImage::from_fn(img.width as u32, img.height as u32, |x, y| {
         let g = img.at(x as usize, y as usize) / 3;
         Rgb([g, g, g])

@@ -24,6 +24,8 @@ pub struct FrontEnd {
     pub lines2d: Vec<Line2>,
     /// 3D lines in the `cam` frame (none without a calibration).
     pub lines3d: Vec<Line3>,
+    /// The rectification used (none for images given already rectified).
+    pub rect: Option<Rectification>,
     pub timings_ms: Vec<(&'static str, f64)>,
 }
 
@@ -146,6 +148,21 @@ pub fn run_with(
         matches,
         lines2d,
         lines3d,
+        rect,
         timings_ms,
+    }
+}
+
+impl FrontEnd {
+    /// A 2D line's ends in the left image's own (unrectified) pixels.
+    pub fn line2d_in_image(&self, line: &Line2) -> [[f32; 2]; 2] {
+        let back = |p: [f32; 2]| match &self.rect {
+            Some(rect) => {
+                let (x, y) = rect.from_rectified(Side::Left, p[0] as f64, p[1] as f64);
+                [x as f32, y as f32]
+            }
+            None => p,
+        };
+        [back(line.start), back(line.end)]
     }
 }

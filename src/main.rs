@@ -55,9 +55,10 @@ enum Command {
     /// The vision front end on a stereo pair, rendered or real: Canny, edge strings,
     /// rectification, PMF stereo.
     ///
-    /// Prints a summary, or with --json the `matches` (left edgel `x`, `y` in the left image and
-    /// `disparity` in rectified pixels) and per-stage `timings_ms`. 2D and 3D lines are not
-    /// built yet.
+    /// Prints a summary, or with --json: `matches` (left edgel `x`, `y` in the left image and
+    /// `disparity` in rectified pixels), `lines2d` (ends in left-image pixels), `lines3d` (ends
+    /// `a`, `b` in metres in the `cam` frame, the left camera's, with depth sigmas) and
+    /// per-stage `timings_ms`.
     Stereo {
         #[arg(long)]
         left: PathBuf,
@@ -74,7 +75,8 @@ enum Command {
         disparity: Option<(f32, f32)>,
         #[arg(long)]
         json: bool,
-        /// Folder for debug images (matches.png: matched edgels coloured by disparity).
+        /// Folder for debug images: edges.png (left strings), matches.png (matched edgels
+        /// coloured by disparity, blue far to red near).
         #[arg(long)]
         out: Option<PathBuf>,
     },

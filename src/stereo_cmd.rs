@@ -99,13 +99,27 @@ pub fn run(
             .iter()
             .map(|(k, v)| (k.to_string(), serde_json::json!(v)))
             .collect();
-        crate::emit(&serde_json::json!({ "matches": matches, "timings_ms": timings }).to_string())?;
+        let lines2d: Vec<_> = fe.lines2d.iter().map(|l| fe.line2d_in_image(l)).collect();
+        let lines3d: Vec<_> = fe
+            .lines3d
+            .iter()
+            .map(|l| serde_json::json!({ "a": l.a, "b": l.b, "sigma_a": l.sigma_a, "sigma_b": l.sigma_b }))
+            .collect();
+        let doc = serde_json::json!({
+            "matches": matches,
+            "lines2d": lines2d,
+            "lines3d": lines3d,
+            "timings_ms": timings,
+        });
+        crate::emit(&doc.to_string())?;
     } else {
         crate::emit(&format!(
-            "{} left and {} right edgels, {} matches ({})",
+            "{} left and {} right edgels, {} matches, {} 2D lines, {} 3D lines ({})",
             fe.left.edgels.len(),
             fe.right.edgels.len(),
             fe.matches.len(),
+            fe.lines2d.len(),
+            fe.lines3d.len(),
             fe.timings_ms
                 .iter()
                 .map(|(k, v)| format!("{k} {v:.1} ms"))
@@ -117,6 +131,10 @@ pub fn run(
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         let path = dir.join("matches.png");
         draw_matches(&l, &fe)
+            .save(&path)
+            .with_context(|| format!("writing {}", path.display()))?;
+        let path = dir.join("edges.png");
+        crate::edges_cmd::draw(&l, &fe.left_strings, &fe.left.edgels)
             .save(&path)
             .with_context(|| format!("writing {}", path.display()))?;
     }

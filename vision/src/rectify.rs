@@ -94,6 +94,11 @@ impl Rectification {
         apply(&self.homography(side), x, y)
     }
 
+    /// A camera's pixel seen at rectified position `(x, y)`.
+    pub fn from_rectified(&self, side: Side, x: f64, y: f64) -> (f64, f64) {
+        apply(&self.inverse_homography(side), x, y)
+    }
+
     /// Rectifies edgels: positions, and orientations through the homography's local Jacobian.
     pub fn rectify_edgels(&self, side: Side, edgels: &[Edgel]) -> Vec<Edgel> {
         let h = self.homography(side);
