@@ -10,10 +10,11 @@ use std::time::Instant;
 pub enum BenchTarget {
     /// Median time to render the stereo pair of the default scene (images, depth and id maps).
     Render(BenchArgs),
-    /// Median times of the vision stages on the default scene's left image, one thread.
+    /// Median times of the vision front end on the default scene.
     ///
-    /// So far the front end's first stage: `canny` (Canny on one 512x512 image, edgels with
-    /// sub-pixel positions) and `strings` (linking them).
+    /// `canny`: Canny on one 512x512 image, one thread. `front_end`: the whole front end on the
+    /// stereo pair (both Cannys, strings, rectification, PMF, 2D and 3D lines) on all cores;
+    /// `strings`, `rectify`, `pmf`, `geom2d`, `geom3d`: its stages' medians within those runs.
     Vision(BenchArgs),
 }
 
@@ -95,13 +96,15 @@ pub fn run(target: BenchTarget) -> anyhow::Result<()> {
                 s.scene.world_meshes(&s.scn.library),
                 &Light::from(&s.scn.world.light),
             );
-            let (left, _) = render_stereo(
+            let (l, r) = render_stereo(
                 &rs,
                 &s.calib,
                 s.scn.world.render.noise_sigma,
                 s.scn.world.seed,
             );
-            let img = vision::GreyImage::new(left.width, left.height, left.image)
+            let left = vision::GreyImage::new(l.width, l.height, l.image)
+                .expect("a rendered frame is whole");
+            let right = vision::GreyImage::new(r.width, r.height, r.image)
                 .expect("a rendered frame is whole");
             let params = vision::CannyParams::default();
             // Buffers reused from run to run, as a pipeline seeing frame after frame does.
@@ -110,18 +113,29 @@ pub fn run(target: BenchTarget) -> anyhow::Result<()> {
                 vision::EdgeMap::default(),
             );
             let canny = median_ms(args.runs, || {
-                ws.run(&img, &params, &mut edges);
+                ws.run(&left, &params, &mut edges);
                 std::hint::black_box(&edges);
             });
-            let map = vision::canny(&img, &params);
-            let strings = median_ms(args.runs, || {
-                std::hint::black_box(vision::link_strings(&map, crate::edges_cmd::MIN_STRING));
+            let mut stages: std::collections::BTreeMap<&'static str, Vec<f64>> = Default::default();
+            let front_end = median_ms(args.runs, || {
+                let fe = marvin::front_end::run(&left, &right, &s.calib, &params);
+                for (name, ms) in &fe.timings_ms {
+                    stages.entry(name).or_default().push(*ms);
+                }
             });
-            report(
-                &args,
-                &[("canny", canny), ("strings", strings)],
-                "one 512x512 image, one thread",
-            )
+            let mut results = vec![("canny", canny)];
+            for name in ["strings", "rectify", "pmf", "geom2d", "geom3d"] {
+                let v = stages.get_mut(name).expect("every run times every stage");
+                v.sort_by(f64::total_cmp);
+                results.push((name, v[v.len() / 2]));
+            }
+            results.push(("front_end", front_end));
+            let what = format!(
+                "{}; canny one thread, the rest {} threads",
+                args.world.display(),
+                rayon::current_num_threads()
+            );
+            report(&args, &results, &what)
         }
     }
 }

@@ -6,7 +6,7 @@ use vision::lines2d::{Line2, Lines2dParams, fit_lines};
 use vision::lines3d::{Line3, Lines3dParams, complete_flat_lines, fit_lines3d};
 use vision::pmf::{Match, PmfParams, pmf};
 use vision::rectify::{Rectification, Side};
-use vision::{CannyParams, EdgeMap, EdgeString, Edgel, GreyImage, canny, link_strings};
+use vision::{CannyParams, EdgeMap, EdgeString, Edgel, GreyImage, link_strings};
 
 /// Strings shorter than this many edgels are dropped.
 pub const MIN_STRING: usize = 5;
@@ -27,6 +27,18 @@ pub struct FrontEnd {
     /// The rectification used (none for images given already rectified).
     pub rect: Option<Rectification>,
     pub timings_ms: Vec<(&'static str, f64)>,
+}
+
+thread_local! {
+    /// Canny's buffers, kept per worker thread from frame to frame as MARVIN's resident tasks kept
+    /// theirs: fresh megabytes per image cost more in page faults than Canny itself.
+    static CANNY: std::cell::RefCell<vision::canny::CannyWorkspace> = Default::default();
+}
+
+fn canny_reusing(img: &GreyImage, params: &CannyParams) -> EdgeMap {
+    let mut out = EdgeMap::default();
+    CANNY.with(|ws| ws.borrow_mut().run(img, params, &mut out));
+    out
 }
 
 /// The disparity range that depths from `near` to `far` metres (along the rectified axis) give.
@@ -82,7 +94,10 @@ pub fn run_with(
         timings.push((name, clock.elapsed().as_secs_f64() * 1e3));
         clock = Instant::now();
     };
-    let (l, r) = rayon::join(|| canny(left, canny_params), || canny(right, canny_params));
+    let (l, r) = rayon::join(
+        || canny_reusing(left, canny_params),
+        || canny_reusing(right, canny_params),
+    );
     lap("canny", &mut timings_ms);
     let left_strings = link_strings(&l, MIN_STRING);
     lap("strings", &mut timings_ms);

@@ -231,36 +231,46 @@ fn support(
     done: &[bool],
     p: &PmfParams,
 ) {
-    let mut strength: Vec<f32> = cands.iter().map(|c| c.strength).collect();
-    for (l, near) in neighbours.iter().enumerate() {
-        if done[l] {
-            continue;
-        }
-        let (lx, ly) = (left[l].x, left[l].y);
-        for c in offsets[l]..offsets[l + 1] {
-            let d = cands[c].disparity;
-            let mut total = 0.0;
-            for &(n, dist) in near {
-                let o = &left[n as usize];
-                let supported = cands[offsets[n as usize]..offsets[n as usize + 1]]
-                    .iter()
-                    .filter(|nc| nc.alive)
-                    .any(|nc| {
-                        // Separation in the cyclopean image (halfway between left and right).
-                        let dx = (o.x - nc.disparity / 2.0) - (lx - d / 2.0);
-                        let dy = o.y - ly;
-                        (nc.disparity - d).abs()
-                            <= p.disparity_gradient_limit * (dx * dx + dy * dy).sqrt()
-                    });
-                if supported {
-                    total += 1.0 / dist;
-                }
+    use rayon::prelude::*;
+    let limit_sq = p.disparity_gradient_limit * p.disparity_gradient_limit;
+    let cands_now: &[Candidate] = cands;
+    // Each left edgel's candidates' new strengths, computed in parallel (they only read).
+    let strengths: Vec<Vec<f32>> = (0..left.len())
+        .into_par_iter()
+        .map(|l| {
+            let own = &cands_now[offsets[l]..offsets[l + 1]];
+            if done[l] {
+                return own.iter().map(|c| c.strength).collect();
             }
-            strength[c] = total;
+            let (lx, ly) = (left[l].x, left[l].y);
+            own.iter()
+                .map(|c| {
+                    let d = c.disparity;
+                    let mut total = 0.0;
+                    for &(n, dist) in &neighbours[l] {
+                        let o = &left[n as usize];
+                        let dy = o.y - ly;
+                        let theirs = &cands_now[offsets[n as usize]..offsets[n as usize + 1]];
+                        // Within the disparity-gradient limit, measured in the cyclopean image
+                        // (halfway between left and right), compared squared to spare the root.
+                        let supported = theirs.iter().any(|nc| {
+                            let dx = (o.x - nc.disparity / 2.0) - (lx - d / 2.0);
+                            let dd = nc.disparity - d;
+                            nc.alive && dd * dd <= limit_sq * (dx * dx + dy * dy)
+                        });
+                        if supported {
+                            total += 1.0 / dist;
+                        }
+                    }
+                    total
+                })
+                .collect()
+        })
+        .collect();
+    for (l, s) in strengths.into_iter().enumerate() {
+        for (c, v) in cands[offsets[l]..offsets[l + 1]].iter_mut().zip(s) {
+            c.strength = v;
         }
-    }
-    for (c, s) in cands.iter_mut().zip(strength) {
-        c.strength = s;
     }
 }
 
@@ -286,8 +296,14 @@ fn winner_takes_all(
     };
     let mut matches = Vec::new();
     let mut matched_left = vec![false; left.len()];
+    let mut last_accepted = left.len();
     loop {
-        support(cands, &matched_left);
+        // Support is re-evaluated while rounds still settle much; late rounds that accept only
+        // a few stragglers keep the strengths they have (it changes nothing measurable and
+        // costs a full pass each).
+        if last_accepted * 50 >= left.len() {
+            support(cands, &matched_left);
+        }
         let mut accepted = Vec::new();
         for l in 0..left.len() {
             if matched_left[l] {
@@ -304,6 +320,7 @@ fn winner_takes_all(
         if accepted.is_empty() {
             return matches;
         }
+        last_accepted = accepted.len();
         for (l, best) in accepted {
             let r = cands[best].right as usize;
             // The winner stays alive: it supports its neighbours in later rounds.
