@@ -8,10 +8,13 @@
 //! - [`pmf`]: PMF stereo matching of rectified edgels.
 //! - [`lines2d`]: strings cut into straight lines by recursive fit and segment.
 //! - [`lines3d`]: disparity fitted along each 2D line, its ends triangulated into 3D segments.
+//! - [`front_end`]: the stages above run in order on one stereo pair.
 //!
-//! Still to come (the front-end issue): slices and the Joiner; then the model matcher.
+//! Still to come: slices and the Joiner (the front end's spatial parallelism), the runtime of
+//! communicating processes, and the model matcher.
 
 pub mod canny;
+pub mod front_end;
 pub mod image;
 pub mod lines2d;
 pub mod lines3d;

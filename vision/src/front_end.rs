@@ -1,12 +1,12 @@
 //! The vision front end on one stereo pair: what `marvin stereo` and `marvin eval vision` run.
 
+use crate::lines2d::{Line2, Lines2dParams, fit_lines};
+use crate::lines3d::{Line3, Lines3dParams, complete_flat_lines, fit_lines3d};
+use crate::pmf::{Match, PmfParams, pmf};
+use crate::rectify::{Rectification, Side};
+use crate::{CannyParams, EdgeMap, EdgeString, Edgel, GreyImage, link_strings};
 use mesh::StereoCalibration;
 use std::time::Instant;
-use vision::lines2d::{Line2, Lines2dParams, fit_lines};
-use vision::lines3d::{Line3, Lines3dParams, complete_flat_lines, fit_lines3d};
-use vision::pmf::{Match, PmfParams, pmf};
-use vision::rectify::{Rectification, Side};
-use vision::{CannyParams, EdgeMap, EdgeString, Edgel, GreyImage, link_strings};
 
 /// Strings shorter than this many edgels are dropped.
 pub const MIN_STRING: usize = 5;
@@ -32,7 +32,7 @@ pub struct FrontEnd {
 thread_local! {
     /// Canny's buffers, kept per worker thread from frame to frame as MARVIN's resident tasks kept
     /// theirs: fresh megabytes per image cost more in page faults than Canny itself.
-    static CANNY: std::cell::RefCell<vision::canny::CannyWorkspace> = Default::default();
+    static CANNY: std::cell::RefCell<crate::canny::CannyWorkspace> = Default::default();
 }
 
 fn canny_reusing(img: &GreyImage, params: &CannyParams) -> EdgeMap {
