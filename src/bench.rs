@@ -13,8 +13,10 @@ pub enum BenchTarget {
     /// Median times of the vision front end on the default scene.
     ///
     /// `canny`: Canny on one 512x512 image, one thread. `front_end`: the whole front end on the
-    /// stereo pair (both Cannys, strings, rectification, PMF, 2D and 3D lines) on all cores;
-    /// `strings`, `rectify`, `pmf`, `geom2d`, `geom3d`: its stages' medians within those runs.
+    /// stereo pair (both Cannys, strings, rectification, PMF, 2D and 3D lines) in 8 slices and
+    /// joined, on all cores; `slices` and `join` its two parts. `front_end_whole`: the same
+    /// without slicing (`--slices 1`), with its stages `strings`, `rectify`, `pmf`, `geom2d`,
+    /// `geom3d`.
     Vision(BenchArgs),
 }
 
@@ -60,10 +62,8 @@ fn setup(world: &std::path::Path) -> anyhow::Result<Setup> {
 
 fn report(args: &BenchArgs, results: &[(&str, f64)], what: &str) -> anyhow::Result<()> {
     if args.json {
-        let map: serde_json::Map<String, serde_json::Value> = results
-            .iter()
-            .map(|(k, v)| (k.to_string(), serde_json::json!({ "median_ms": v })))
-            .collect();
+        let map: serde_json::Map<String, serde_json::Value> =
+            results.iter().map(|(k, v)| (k.to_string(), serde_json::json!({ "median_ms": v }))).collect();
         crate::emit(&serde_json::Value::Object(map).to_string())
     } else {
         for (k, v) in results {
@@ -83,53 +83,43 @@ pub fn run(target: BenchTarget) -> anyhow::Result<()> {
                 let rs = RenderScene::new(s.scene.world_meshes(&s.scn.library), &light);
                 std::hint::black_box(render_stereo(&rs, &s.calib, sigma, s.scn.world.seed));
             });
-            let what = format!(
-                "stereo pair of {}, {} threads",
-                args.world.display(),
-                rayon::current_num_threads()
-            );
+            let what = format!("stereo pair of {}, {} threads", args.world.display(), rayon::current_num_threads());
             report(&args, &[("render", median)], &what)
         }
         BenchTarget::Vision(args) => {
             let s = setup(&args.world)?;
-            let rs = RenderScene::new(
-                s.scene.world_meshes(&s.scn.library),
-                &Light::from(&s.scn.world.light),
-            );
-            let (l, r) = render_stereo(
-                &rs,
-                &s.calib,
-                s.scn.world.render.noise_sigma,
-                s.scn.world.seed,
-            );
-            let left = vision::GreyImage::new(l.width, l.height, l.image)
-                .expect("a rendered frame is whole");
-            let right = vision::GreyImage::new(r.width, r.height, r.image)
-                .expect("a rendered frame is whole");
+            let rs = RenderScene::new(s.scene.world_meshes(&s.scn.library), &Light::from(&s.scn.world.light));
+            let (l, r) = render_stereo(&rs, &s.calib, s.scn.world.render.noise_sigma, s.scn.world.seed);
+            let left = vision::GreyImage::new(l.width, l.height, l.image).expect("a rendered frame is whole");
+            let right = vision::GreyImage::new(r.width, r.height, r.image).expect("a rendered frame is whole");
             let params = vision::CannyParams::default();
             // Buffers reused from run to run, as a pipeline seeing frame after frame does.
-            let (mut ws, mut edges) = (
-                vision::canny::CannyWorkspace::default(),
-                vision::EdgeMap::default(),
-            );
+            let (mut ws, mut edges) = (vision::canny::CannyWorkspace::default(), vision::EdgeMap::default());
             let canny = median_ms(args.runs, || {
                 ws.run(&left, &params, &mut edges);
                 std::hint::black_box(&edges);
             });
             let mut stages: std::collections::BTreeMap<&'static str, Vec<f64>> = Default::default();
-            let front_end = median_ms(args.runs, || {
+            let whole = median_ms(args.runs, || {
                 let fe = marvin::front_end::run(&left, &right, &s.calib, &params);
                 for (name, ms) in &fe.timings_ms {
                     stages.entry(name).or_default().push(*ms);
                 }
             });
+            let sliced = median_ms(args.runs, || {
+                let fe = vision::slices::run_sliced(&left, &right, &s.calib, &params, 8);
+                for (name, ms) in &fe.timings_ms {
+                    stages.entry(name).or_default().push(*ms);
+                }
+            });
             let mut results = vec![("canny", canny)];
-            for name in ["strings", "rectify", "pmf", "geom2d", "geom3d"] {
+            for name in ["strings", "rectify", "pmf", "geom2d", "geom3d", "slices", "join"] {
                 let v = stages.get_mut(name).expect("every run times every stage");
                 v.sort_by(f64::total_cmp);
                 results.push((name, v[v.len() / 2]));
             }
-            results.push(("front_end", front_end));
+            results.push(("front_end", sliced));
+            results.push(("front_end_whole", whole));
             let what = format!(
                 "{}; canny one thread, the rest {} threads",
                 args.world.display(),

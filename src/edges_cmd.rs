@@ -11,8 +11,7 @@ pub const MIN_STRING: usize = 5;
 
 /// Reads any image file as 8-bit grey, naming the file in every error.
 pub fn load_grey(path: &Path) -> anyhow::Result<GreyImage> {
-    let img = image::open(path)
-        .with_context(|| format!("{}: cannot read as an image", path.display()))?;
+    let img = image::open(path).with_context(|| format!("{}: cannot read as an image", path.display()))?;
     let grey = img.into_luma8();
     let (w, h) = (grey.width() as usize, grey.height() as usize);
     GreyImage::new(w, h, grey.into_raw())
@@ -31,10 +30,7 @@ struct EdgesJson<'a> {
 
 pub fn run(image: &Path, sigma: f32, json: bool, out: Option<&Path>) -> anyhow::Result<()> {
     let img = load_grey(image)?;
-    let params = CannyParams {
-        sigma,
-        ..CannyParams::default()
-    };
+    let params = CannyParams { sigma, ..CannyParams::default() };
     let map = canny(&img, &params);
     let strings = link_strings(&map, MIN_STRING);
     if json {
@@ -56,9 +52,7 @@ pub fn run(image: &Path, sigma: f32, json: bool, out: Option<&Path>) -> anyhow::
         ))?;
     }
     if let Some(path) = out {
-        draw(&img, &strings, &map.edgels)
-            .save(path)
-            .with_context(|| format!("writing {}", path.display()))?;
+        draw(&img, &strings, &map.edgels).save(path).with_context(|| format!("writing {}", path.display()))?;
     }
     Ok(())
 }
@@ -83,13 +77,7 @@ pub fn draw(img: &GreyImage, strings: &[EdgeString], edgels: &[Edgel]) -> RgbIma
 }
 
 fn palette(k: usize) -> Rgb<u8> {
-    const COLOURS: [[u8; 3]; 6] = [
-        [255, 80, 80],
-        [80, 255, 80],
-        [90, 140, 255],
-        [255, 230, 60],
-        [255, 90, 255],
-        [60, 240, 240],
-    ];
+    const COLOURS: [[u8; 3]; 6] =
+        [[255, 80, 80], [80, 255, 80], [90, 140, 255], [255, 230, 60], [255, 90, 255], [60, 240, 240]];
     Rgb(COLOURS[k % COLOURS.len()])
 }

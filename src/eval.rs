@@ -36,22 +36,12 @@ impl DisparityStats {
 
 /// Compares every match's disparity with the true one at its left edgel (the nearer surface's
 /// at an occluding boundary).
-pub fn disparity_stats(
-    fe: &FrontEnd,
-    truth: &TruthScene,
-    calib: &StereoCalibration,
-) -> DisparityStats {
+pub fn disparity_stats(fe: &FrontEnd, truth: &TruthScene, calib: &StereoCalibration) -> DisparityStats {
     let rect = Rectification::new(calib);
     let mut stats = DisparityStats::default();
     for m in &fe.matches {
         let e = &fe.left.edgels[m.left as usize];
-        let Some(d) = truth.disparity(
-            &calib.left,
-            &rect,
-            e.x as f64,
-            e.y as f64,
-            e.orientation as f64,
-        ) else {
+        let Some(d) = truth.disparity(&calib.left, &rect, e.x as f64, e.y as f64, e.orientation as f64) else {
             continue;
         };
         let err = (m.disparity as f64 - d).abs();
@@ -75,8 +65,7 @@ pub struct LineStats {
 
 impl LineStats {
     pub fn add(&mut self, other: &LineStats) {
-        self.endpoint_err_mm
-            .extend_from_slice(&other.endpoint_err_mm);
+        self.endpoint_err_mm.extend_from_slice(&other.endpoint_err_mm);
         self.visible_m += other.visible_m;
         self.recovered_m += other.recovered_m;
     }
@@ -131,15 +120,11 @@ pub fn line_stats(
             })
         })
         .collect();
-    let lines: Vec<(Point3<f64>, Point3<f64>)> =
-        fe.lines3d.iter().map(|l| (l.start(), l.end())).collect();
+    let lines: Vec<(Point3<f64>, Point3<f64>)> = fe.lines3d.iter().map(|l| (l.start(), l.end())).collect();
     let mut stats = LineStats::default();
     for (a, b) in &lines {
         for p in [a, b] {
-            let nearest = edges
-                .iter()
-                .map(|(ea, eb)| point_segment_distance(p, ea, eb))
-                .fold(f64::MAX, f64::min);
+            let nearest = edges.iter().map(|(ea, eb)| point_segment_distance(p, ea, eb)).fold(f64::MAX, f64::min);
             stats.endpoint_err_mm.push(nearest * 1e3);
         }
     }
@@ -160,10 +145,7 @@ pub fn line_stats(
         for k in 0..steps {
             let p = ea + (eb - ea) * ((k as f64 + 0.5) / steps as f64);
             let step_m = (eb - ea).norm() / steps as f64;
-            let Some(px) = cam
-                .project_cam(&p)
-                .filter(|q| visible(q, p.z, left_depth, cam))
-            else {
+            let Some(px) = cam.project_cam(&p).filter(|q| visible(q, p.z, left_depth, cam)) else {
                 close_run(&mut run, &mut stats);
                 last_px = None;
                 continue;
@@ -172,8 +154,7 @@ pub fn line_stats(
             run.1 += step_m;
             let recovered = lines.iter().any(|(la, lb)| {
                 let ldir = (lb - la).normalize();
-                ldir.dot(&dir).abs() >= cos_max
-                    && point_segment_distance(&p, la, lb) <= RECOVERED_WITHIN_M
+                ldir.dot(&dir).abs() >= cos_max && point_segment_distance(&p, la, lb) <= RECOVERED_WITHIN_M
             });
             if recovered {
                 run.2 += step_m;
@@ -193,8 +174,7 @@ fn visible(px: &nalgebra::Point2<f64>, z: f64, depth: &[f32], cam: &mesh::Pinhol
     if cx < 1 || cy < 1 || cx >= w - 1 || cy >= h - 1 {
         return false;
     }
-    let around = (-1..=1)
-        .flat_map(|dy| (-1..=1).map(move |dx| depth[((cy + dy) * w + cx + dx) as usize] as f64));
+    let around = (-1..=1).flat_map(|dy| (-1..=1).map(move |dx| depth[((cy + dy) * w + cx + dx) as usize] as f64));
     let (mut own, mut occluded) = (false, false);
     for d in around {
         own |= (d - z).abs() < 0.003;

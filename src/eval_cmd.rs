@@ -23,18 +23,16 @@ pub enum EvalTarget {
         /// First seed; scene k uses seed + k.
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// Slices of the front end (1: whole images).
+        #[arg(long, default_value_t = 8)]
+        slices: usize,
         #[arg(long)]
         json: bool,
     },
 }
 
 pub fn run(target: EvalTarget) -> anyhow::Result<()> {
-    let EvalTarget::Vision {
-        world,
-        scenes,
-        seed,
-        json,
-    } = target;
+    let EvalTarget::Vision { world, scenes, seed, slices, json } = target;
     let scn = Scenario::load(&world)?;
     let calib = sim::rig::calibration(&scn.world.cameras);
     let light = Light::from(&scn.world.light);
@@ -50,11 +48,14 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
             scn.world.render.noise_sigma,
             s,
         );
-        let left =
-            vision::GreyImage::new(l.width, l.height, l.image).expect("a rendered frame is whole");
-        let right =
-            vision::GreyImage::new(r.width, r.height, r.image).expect("a rendered frame is whole");
-        let fe = marvin::front_end::run(&left, &right, &calib, &vision::CannyParams::default());
+        let left = vision::GreyImage::new(l.width, l.height, l.image).expect("a rendered frame is whole");
+        let right = vision::GreyImage::new(r.width, r.height, r.image).expect("a rendered frame is whole");
+        let params = vision::CannyParams::default();
+        let fe = if slices > 1 {
+            vision::slices::run_sliced(&left, &right, &calib, &params, slices)
+        } else {
+            marvin::front_end::run(&left, &right, &calib, &params)
+        };
         let truth = TruthScene::new(scene.world_meshes(&scn.library).map(|(_, m)| m));
         let stats = disparity_stats(&fe, &truth, &calib);
         let line = line_stats(&fe, &scene, &scn.library, &calib, &l.depth);
@@ -92,9 +93,5 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
         "lines3d_per_scene": lines.endpoint_err_mm.len() as f64 / 2.0 / scenes.max(1) as f64,
         "timings_ms": medians,
     });
-    if json {
-        crate::emit(&report.to_string())
-    } else {
-        crate::emit(&serde_json::to_string_pretty(&report)?)
-    }
+    if json { crate::emit(&report.to_string()) } else { crate::emit(&serde_json::to_string_pretty(&report)?) }
 }

@@ -73,6 +73,10 @@ enum Command {
         /// Disparity range MIN:MAX in pixels, for --rectified images.
         #[arg(long, value_parser = stereo_cmd::parse_range)]
         disparity: Option<(f32, f32)>,
+        /// Horizontal slices processed in parallel and joined, as MARVIN's processors did (1: the
+        /// whole image at once). Calibrated pairs only; rectified input runs whole.
+        #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u16).range(1..=64))]
+        slices: u16,
         #[arg(long)]
         json: bool,
         /// Folder for debug images: edges.png (left strings), matches.png (matched edgels
@@ -105,22 +109,11 @@ pub(crate) fn emit(line: &str) -> anyhow::Result<()> {
 fn main() -> std::process::ExitCode {
     let result = match Cli::parse().command {
         Command::Render { world, seed, out } => render_cmd::run(&world, seed, &out),
-        Command::Edges {
-            image,
-            sigma,
-            json,
-            out,
-        } => edges_cmd::run(&image, sigma, json, out.as_deref()),
-        Command::Stereo {
-            left,
-            right,
-            calib,
-            rectified,
-            disparity,
-            json,
-            out,
-        } => stereo_cmd::geometry(calib.as_deref(), rectified, disparity)
-            .and_then(|g| stereo_cmd::run(&left, &right, &g, json, out.as_deref())),
+        Command::Edges { image, sigma, json, out } => edges_cmd::run(&image, sigma, json, out.as_deref()),
+        Command::Stereo { left, right, calib, rectified, disparity, slices, json, out } => {
+            stereo_cmd::geometry(calib.as_deref(), rectified, disparity)
+                .and_then(|g| stereo_cmd::run(&left, &right, &g, slices as usize, json, out.as_deref()))
+        }
         Command::Eval { what } => eval_cmd::run(what),
         Command::Bench { what } => bench::run(what),
     };

@@ -18,23 +18,13 @@ pub fn run(world: &Path, seed: Option<u64>, out: &Path) -> anyhow::Result<()> {
         scene.objects.len(),
         scene.settle.simulated_s,
         t0.elapsed().as_secs_f64(),
-        if scene.settle.at_rest {
-            ""
-        } else {
-            " -- NOT at rest at the time limit"
-        }
+        if scene.settle.at_rest { "" } else { " -- NOT at rest at the time limit" }
     );
     let calib = sim::rig::calibration(&scn.world.cameras);
     let t1 = Instant::now();
-    let rs = RenderScene::new(
-        scene.world_meshes(&scn.library),
-        &Light::from(&scn.world.light),
-    );
+    let rs = RenderScene::new(scene.world_meshes(&scn.library), &Light::from(&scn.world.light));
     let (left, right) = render_stereo(&rs, &calib, scn.world.render.noise_sigma, seed);
-    eprintln!(
-        "rendered the stereo pair in {:.1} ms",
-        t1.elapsed().as_secs_f64() * 1e3
-    );
+    eprintln!("rendered the stereo pair in {:.1} ms", t1.elapsed().as_secs_f64() * 1e3);
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     for (name, frame) in [("left", &left), ("right", &right)] {
         write_frame(frame, name, out)?;
@@ -53,24 +43,12 @@ fn write_frame(f: &Frame, name: &str, out: &Path) -> anyhow::Result<()> {
         result.with_context(|| format!("writing {}", out.join(file).display()))
     };
     let grey = ImageBuffer::<Luma<u8>, _>::from_raw(w, h, f.image.clone()).context("image size")?;
-    save(
-        format!("{name}.png"),
-        grey.save(out.join(format!("{name}.png"))),
-    )?;
-    let depth: Vec<u16> = f
-        .depth
-        .iter()
-        .map(|&d| (d as f64 / DEPTH_UNIT_M).round().min(u16::MAX as f64) as u16)
-        .collect();
+    save(format!("{name}.png"), grey.save(out.join(format!("{name}.png"))))?;
+    let depth: Vec<u16> =
+        f.depth.iter().map(|&d| (d as f64 / DEPTH_UNIT_M).round().min(u16::MAX as f64) as u16).collect();
     let depth = ImageBuffer::<Luma<u16>, _>::from_raw(w, h, depth).context("depth size")?;
-    save(
-        format!("depth_{name}.png"),
-        depth.save(out.join(format!("depth_{name}.png"))),
-    )?;
+    save(format!("depth_{name}.png"), depth.save(out.join(format!("depth_{name}.png"))))?;
     let ids = ImageBuffer::<Luma<u16>, _>::from_raw(w, h, f.ids.clone()).context("id map size")?;
-    save(
-        format!("ids_{name}.png"),
-        ids.save(out.join(format!("ids_{name}.png"))),
-    )?;
+    save(format!("ids_{name}.png"), ids.save(out.join(format!("ids_{name}.png"))))?;
     Ok(())
 }

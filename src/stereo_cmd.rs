@@ -10,33 +10,16 @@ use vision::{CannyParams, GreyImage};
 
 /// Parses `MIN:MAX`.
 pub fn parse_range(s: &str) -> Result<(f32, f32), String> {
-    let (a, b) = s
-        .split_once(':')
-        .ok_or_else(|| format!("`{s}` is not MIN:MAX"))?;
-    let parse = |v: &str| {
-        v.trim()
-            .parse::<f32>()
-            .map_err(|e| format!("`{v}` in `{s}`: {e}"))
-    };
+    let (a, b) = s.split_once(':').ok_or_else(|| format!("`{s}` is not MIN:MAX"))?;
+    let parse = |v: &str| v.trim().parse::<f32>().map_err(|e| format!("`{v}` in `{s}`: {e}"));
     let (lo, hi) = (parse(a)?, parse(b)?);
-    if lo < hi {
-        Ok((lo, hi))
-    } else {
-        Err(format!("`{s}`: MIN must be below MAX"))
-    }
+    if lo < hi { Ok((lo, hi)) } else { Err(format!("`{s}`: MIN must be below MAX")) }
 }
 
-pub fn geometry(
-    calib: Option<&Path>,
-    rectified: bool,
-    disparity: Option<(f32, f32)>,
-) -> anyhow::Result<Geometry> {
+pub fn geometry(calib: Option<&Path>, rectified: bool, disparity: Option<(f32, f32)>) -> anyhow::Result<Geometry> {
     match (calib, rectified, disparity) {
         (Some(path), false, None) => Ok(Geometry::Calibrated(mesh::StereoCalibration::load(path)?)),
-        (None, true, Some((disparity_min, disparity_max))) => Ok(Geometry::Rectified {
-            disparity_min,
-            disparity_max,
-        }),
+        (None, true, Some((disparity_min, disparity_max))) => Ok(Geometry::Rectified { disparity_min, disparity_max }),
         _ => bail!("give either --calib FILE, or --rectified with --disparity MIN:MAX"),
     }
 }
@@ -54,6 +37,7 @@ pub fn run(
     left: &Path,
     right: &Path,
     geometry: &Geometry,
+    slices: usize,
     json: bool,
     out: Option<&Path>,
 ) -> anyhow::Result<()> {
@@ -72,33 +56,25 @@ pub fn run(
     if let Geometry::Calibrated(c) = geometry
         && (c.left.width as usize, c.left.height as usize) != (l.width, l.height)
     {
-        bail!(
-            "the calibration is for {}x{} images, these are {}x{}",
-            c.left.width,
-            c.left.height,
-            l.width,
-            l.height
-        );
+        bail!("the calibration is for {}x{} images, these are {}x{}", c.left.width, c.left.height, l.width, l.height);
     }
-    let fe = run_with(&l, &r, geometry, &CannyParams::default());
+    let fe = match geometry {
+        Geometry::Calibrated(calib) if slices > 1 => {
+            vision::slices::run_sliced(&l, &r, calib, &CannyParams::default(), slices)
+        }
+        _ => run_with(&l, &r, geometry, &CannyParams::default()),
+    };
     if json {
         let matches: Vec<MatchJson> = fe
             .matches
             .iter()
             .map(|m| {
                 let e = &fe.left.edgels[m.left as usize];
-                MatchJson {
-                    x: e.x,
-                    y: e.y,
-                    disparity: m.disparity,
-                }
+                MatchJson { x: e.x, y: e.y, disparity: m.disparity }
             })
             .collect();
-        let timings: serde_json::Map<String, serde_json::Value> = fe
-            .timings_ms
-            .iter()
-            .map(|(k, v)| (k.to_string(), serde_json::json!(v)))
-            .collect();
+        let timings: serde_json::Map<String, serde_json::Value> =
+            fe.timings_ms.iter().map(|(k, v)| (k.to_string(), serde_json::json!(v))).collect();
         let lines2d: Vec<_> = fe.lines2d.iter().map(|l| fe.line2d_in_image(l)).collect();
         let lines3d: Vec<_> = fe
             .lines3d
@@ -120,19 +96,13 @@ pub fn run(
             fe.matches.len(),
             fe.lines2d.len(),
             fe.lines3d.len(),
-            fe.timings_ms
-                .iter()
-                .map(|(k, v)| format!("{k} {v:.1} ms"))
-                .collect::<Vec<_>>()
-                .join(", ")
+            fe.timings_ms.iter().map(|(k, v)| format!("{k} {v:.1} ms")).collect::<Vec<_>>().join(", ")
         ))?;
     }
     if let Some(dir) = out {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         let path = dir.join("matches.png");
-        draw_matches(&l, &fe)
-            .save(&path)
-            .with_context(|| format!("writing {}", path.display()))?;
+        draw_matches(&l, &fe).save(&path).with_context(|| format!("writing {}", path.display()))?;
         let path = dir.join("edges.png");
         crate::edges_cmd::draw(&l, &fe.left_strings, &fe.left.edgels)
             .save(&path)
@@ -157,9 +127,7 @@ fn draw_matches(img: &GreyImage, fe: &FrontEnd) -> RgbImage {
     for e in &fe.left.edgels {
         put(&mut out, e.x, e.y, Rgb([110, 110, 110]));
     }
-    let (lo, hi) = fe.matches.iter().fold((f32::MAX, f32::MIN), |(a, b), m| {
-        (a.min(m.disparity), b.max(m.disparity))
-    });
+    let (lo, hi) = fe.matches.iter().fold((f32::MAX, f32::MIN), |(a, b), m| (a.min(m.disparity), b.max(m.disparity)));
     for m in &fe.matches {
         let t = ((m.disparity - lo) / (hi - lo).max(1e-3)).clamp(0.0, 1.0);
         let e = &fe.left.edgels[m.left as usize];
@@ -167,11 +135,7 @@ fn draw_matches(img: &GreyImage, fe: &FrontEnd) -> RgbImage {
             &mut out,
             e.x,
             e.y,
-            Rgb([
-                (255.0 * t) as u8,
-                (255.0 * (1.0 - (2.0 * t - 1.0).abs())) as u8,
-                (255.0 * (1.0 - t)) as u8,
-            ]),
+            Rgb([(255.0 * t) as u8, (255.0 * (1.0 - (2.0 * t - 1.0).abs())) as u8, (255.0 * (1.0 - t)) as u8]),
         );
     }
     out

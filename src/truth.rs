@@ -33,8 +33,7 @@ impl TruthScene {
             let q = s.cross(&e1);
             let v = d.dot(&q) / det;
             let t = e2.dot(&q) / det;
-            if u >= 0.0 && v >= 0.0 && u + v <= 1.0 && t > 0.0 && best.is_none_or(|(bt, _)| t < bt)
-            {
+            if u >= 0.0 && v >= 0.0 && u + v <= 1.0 && t > 0.0 && best.is_none_or(|(bt, _)| t < bt) {
                 best = Some((t, i));
             }
         }
@@ -44,13 +43,7 @@ impl TruthScene {
     /// Where the ray through left pixel `(x, y)` meets the nearer of the surfaces on either side
     /// of an edge with gradient direction `orientation` there: the plane of the nearest surface
     /// hit half a pixel to a pixel either side, intersected with the ray itself.
-    pub fn edge_point(
-        &self,
-        cam: &PinholeCamera,
-        x: f64,
-        y: f64,
-        orientation: f64,
-    ) -> Option<Point3<f64>> {
+    pub fn edge_point(&self, cam: &PinholeCamera, x: f64, y: f64, orientation: f64) -> Option<Point3<f64>> {
         let (s, c) = orientation.sin_cos();
         let (o, centre_dir) = cam.ray_world(x, y);
         let mut nearest: Option<(f64, usize)> = None;

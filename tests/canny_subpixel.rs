@@ -37,38 +37,22 @@ fn rms_for(angle_deg: f64, shift_px: (f64, f64), noise: f64) -> (f64, usize) {
         UnitQuaternion::from_euler_angles(0.0, 0.0, angle_deg.to_radians()),
     );
     let plate = TriMesh::cuboid(Vector3::new(hx, hy, top / 2.0), 0.85).transformed(&pose);
-    let table = TriMesh::cuboid(Vector3::new(1.0, 1.0, 0.05), 0.3)
-        .transformed(&Isometry3::translation(0.0, 0.0, -0.05));
-    let light = Light {
-        towards_light: Vector3::new(0.2, -0.3, 1.0).normalize(),
-        diffuse: 0.7,
-        ambient: 0.3,
-    };
-    let frame = render(
-        &RenderScene::new([(0, table), (1, plate)], &light),
-        &cam,
-        noise,
-        9,
-    );
+    let table =
+        TriMesh::cuboid(Vector3::new(1.0, 1.0, 0.05), 0.3).transformed(&Isometry3::translation(0.0, 0.0, -0.05));
+    let light = Light { towards_light: Vector3::new(0.2, -0.3, 1.0).normalize(), diffuse: 0.7, ambient: 0.3 };
+    let frame = render(&RenderScene::new([(0, table), (1, plate)], &light), &cam, noise, 9);
     let img = GreyImage::new(frame.width, frame.height, frame.image).unwrap();
     let corners: Vec<Point2<f64>> = [(-hx, -hy), (hx, -hy), (hx, hy), (-hx, hy)]
         .iter()
-        .map(|&(x, y)| {
-            cam.project_world(&(pose * Point3::new(x, y, top / 2.0)))
-                .unwrap()
-        })
+        .map(|&(x, y)| cam.project_world(&(pose * Point3::new(x, y, top / 2.0))).unwrap())
         .collect();
     let map = canny(&img, &CannyParams::default());
     let mut sq = Vec::new();
     for e in &map.edgels {
         let p = Point2::new(e.x as f64, e.y as f64);
-        let nearest = (0..4)
-            .map(|k| to_segment(p, corners[k], corners[(k + 1) % 4]))
-            .min_by(|a, b| a.0.total_cmp(&b.0))
-            .unwrap();
-        let side = (corners[1] - corners[0])
-            .norm()
-            .min((corners[2] - corners[1]).norm());
+        let nearest =
+            (0..4).map(|k| to_segment(p, corners[k], corners[(k + 1) % 4])).min_by(|a, b| a.0.total_cmp(&b.0)).unwrap();
+        let side = (corners[1] - corners[0]).norm().min((corners[2] - corners[1]).norm());
         let away_from_corners = nearest.1 * side > 6.0 && (1.0 - nearest.1) * side > 6.0;
         if nearest.0 < 2.0 && away_from_corners {
             sq.push(nearest.0 * nearest.0);
@@ -89,9 +73,7 @@ fn rendered_straight_edges_are_located_within_a_tenth_of_a_pixel_rms() {
             (62.0, (0.9, 0.3)),
         ] {
             let (rms, n) = rms_for(angle, shift, noise);
-            eprintln!(
-                "noise {noise}, angle {angle} deg, shift {shift:?}: rms {rms:.4} px over {n} edgels"
-            );
+            eprintln!("noise {noise}, angle {angle} deg, shift {shift:?}: rms {rms:.4} px over {n} edgels");
             assert!(n > 400, "only {n} edgels along the outline");
             assert!(rms <= 0.1, "noise {noise}, angle {angle}: rms {rms:.3} px");
         }

@@ -4,11 +4,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 fn marvin(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_marvin"))
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .args(args)
-        .output()
-        .unwrap()
+    Command::new(env!("CARGO_BIN_EXE_marvin")).current_dir(env!("CARGO_MANIFEST_DIR")).args(args).output().unwrap()
 }
 
 /// A rendered default scene, made once per test binary run.
@@ -16,19 +12,8 @@ fn rendered() -> PathBuf {
     static ONCE: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
     ONCE.get_or_init(|| {
         let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli_vision_scene");
-        let out = marvin(&[
-            "render",
-            "worlds/widgets.toml",
-            "--seed",
-            "3",
-            "--out",
-            dir.to_str().unwrap(),
-        ]);
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        let out = marvin(&["render", "worlds/widgets.toml", "--seed", "3", "--out", dir.to_str().unwrap()]);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
         dir
     })
     .clone()
@@ -67,70 +52,28 @@ fn stereo_json_lists_matches_with_disparities_in_range() {
         path(&dir.join("scene.json")),
         "--json",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let matches = doc["matches"].as_array().unwrap();
     assert!(matches.len() > 500, "{} matches", matches.len());
     // 0.2 m baseline, f = 1000 px, the workspace 0.6-1.6 m away.
-    assert!(
-        matches
-            .iter()
-            .all(|m| (125.0..=334.0).contains(&m["disparity"].as_f64().unwrap()))
-    );
+    assert!(matches.iter().all(|m| (125.0..=334.0).contains(&m["disparity"].as_f64().unwrap())));
 }
 
 #[test]
 fn stereo_refuses_bad_input_and_says_which() {
     let dir = rendered();
-    let (left, right, calib) = (
-        dir.join("left.png"),
-        dir.join("right.png"),
-        dir.join("scene.json"),
-    );
+    let (left, right, calib) = (dir.join("left.png"), dir.join("right.png"), dir.join("scene.json"));
     let small = dir.join("small.png");
     image::GrayImage::new(100, 80).save(&small).unwrap();
     let cases: Vec<(Vec<&str>, String)> = vec![
         (
-            vec![
-                "--left",
-                path(&left),
-                "--right",
-                path(&small),
-                "--calib",
-                path(&calib),
-            ],
+            vec!["--left", path(&left), "--right", path(&small), "--calib", path(&calib)],
             format!("{} is 100x80", path(&small)),
         ),
-        (
-            vec![
-                "--left",
-                path(&left),
-                "--right",
-                "/no/such.png",
-                "--calib",
-                path(&calib),
-            ],
-            "/no/such.png".into(),
-        ),
-        (
-            vec![
-                "--left",
-                path(&left),
-                "--right",
-                path(&right),
-                "--calib",
-                path(&left),
-            ],
-            path(&left).to_string(),
-        ),
-        (
-            vec!["--left", path(&left), "--right", path(&right)],
-            "--calib".into(),
-        ),
+        (vec!["--left", path(&left), "--right", "/no/such.png", "--calib", path(&calib)], "/no/such.png".into()),
+        (vec!["--left", path(&left), "--right", path(&right), "--calib", path(&left)], path(&left).to_string()),
+        (vec!["--left", path(&left), "--right", path(&right)], "--calib".into()),
     ];
     for (args, expected) in cases {
         let mut all = vec!["stereo"];
@@ -138,9 +81,6 @@ fn stereo_refuses_bad_input_and_says_which() {
         let out = marvin(&all);
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert!(!out.status.success(), "{all:?} should fail");
-        assert!(
-            stderr.contains(&expected),
-            "{all:?}: stderr {stderr} should mention {expected}"
-        );
+        assert!(stderr.contains(&expected), "{all:?}: stderr {stderr} should mention {expected}");
     }
 }

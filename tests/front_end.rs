@@ -10,10 +10,7 @@ fn run_scene(world: &str, seed: u64) -> (DisparityStats, usize) {
     let scn = Scenario::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join(world)).unwrap();
     let calib = sim::rig::calibration(&scn.world.cameras);
     let scene = Scene::settle(&scn, seed);
-    let rs = RenderScene::new(
-        scene.world_meshes(&scn.library),
-        &Light::from(&scn.world.light),
-    );
+    let rs = RenderScene::new(scene.world_meshes(&scn.library), &Light::from(&scn.world.light));
     let (l, r) = render_stereo(&rs, &calib, scn.world.render.noise_sigma, seed);
     let left = vision::GreyImage::new(l.width, l.height, l.image).unwrap();
     let right = vision::GreyImage::new(r.width, r.height, r.image).unwrap();
@@ -29,11 +26,7 @@ fn disparities_of_an_uncluttered_scene_are_right() {
     let (stats, edgels) = run_scene("worlds/two_objects.toml", 1);
     eprintln!("two objects: {stats:?} of {edgels} left edgels");
     assert!(stats.evaluated >= 400, "only {} matches", stats.evaluated);
-    assert!(
-        stats.within_fraction() >= 0.97,
-        "{:.3} within 0.5 px",
-        stats.within_fraction()
-    );
+    assert!(stats.within_fraction() >= 0.97, "{:.3} within 0.5 px", stats.within_fraction());
     assert_eq!(stats.wrong, 0, "wrong matches in a scene without ambiguity");
 }
 
@@ -41,43 +34,58 @@ fn disparities_of_an_uncluttered_scene_are_right() {
 /// (`marvin eval vision worlds/widgets.toml --scenes 20` reports the same over 20).
 #[test]
 fn the_default_world_meets_the_front_end_targets() {
-    let scn =
-        Scenario::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("worlds/widgets.toml")).unwrap();
+    let scn = Scenario::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("worlds/widgets.toml")).unwrap();
     let calib = sim::rig::calibration(&scn.world.cameras);
     let light = Light::from(&scn.world.light);
-    let (mut disparities, mut lines) = (
-        DisparityStats::default(),
-        marvin::eval::LineStats::default(),
-    );
+    let (mut disparities, mut lines) = (DisparityStats::default(), marvin::eval::LineStats::default());
     for seed in 1..=5 {
         let scene = Scene::settle(&scn, seed);
         let rs = RenderScene::new(scene.world_meshes(&scn.library), &light);
         let (l, r) = render_stereo(&rs, &calib, scn.world.render.noise_sigma, seed);
         let left = vision::GreyImage::new(l.width, l.height, l.image.clone()).unwrap();
         let right = vision::GreyImage::new(r.width, r.height, r.image).unwrap();
-        let fe = marvin::front_end::run(&left, &right, &calib, &vision::CannyParams::default());
+        // The front end as shipped: 8 slices, joined.
+        let fe = vision::slices::run_sliced(&left, &right, &calib, &vision::CannyParams::default(), 8);
         let truth = TruthScene::new(scene.world_meshes(&scn.library).map(|(_, m)| m));
         disparities.add(&disparity_stats(&fe, &truth, &calib));
-        lines.add(&marvin::eval::line_stats(
-            &fe,
-            &scene,
-            &scn.library,
-            &calib,
-            &l.depth,
-        ));
+        lines.add(&marvin::eval::line_stats(&fe, &scene, &scn.library, &calib, &l.depth));
     }
     let (within, wrong) = (disparities.within_fraction(), disparities.wrong_fraction());
-    let (median, p90, coverage) = (
-        lines.endpoint_quantile(0.5),
-        lines.endpoint_quantile(0.9),
-        lines.coverage(),
-    );
-    eprintln!(
-        "within 0.5 px {within:.3}, wrong {wrong:.3}, ends {median:.2} / {p90:.2} mm, coverage {coverage:.3}"
-    );
+    let (median, p90, coverage) = (lines.endpoint_quantile(0.5), lines.endpoint_quantile(0.9), lines.coverage());
+    eprintln!("within 0.5 px {within:.3}, wrong {wrong:.3}, ends {median:.2} / {p90:.2} mm, coverage {coverage:.3}");
     assert!(within >= 0.95, "disparity within 0.5 px: {within:.3}");
     assert!(wrong <= 0.02, "wrong matches: {wrong:.3}");
     assert!(median <= 1.0, "endpoint error median {median:.2} mm");
     assert!(p90 <= 3.0, "endpoint error p90 {p90:.2} mm");
     assert!(coverage >= 0.7, "coverage {coverage:.3}");
+}
+
+/// Slicing must not change the answer: nearly every 3D line of the whole-image front end has a
+/// twin from the 8-slice run with both ends within 0.5 mm.
+#[test]
+fn sliced_and_whole_image_runs_agree() {
+    let scn = Scenario::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("worlds/widgets.toml")).unwrap();
+    let calib = sim::rig::calibration(&scn.world.cameras);
+    let light = Light::from(&scn.world.light);
+    let (mut agree, mut total) = (0, 0);
+    for seed in [2, 6, 9] {
+        let scene = Scene::settle(&scn, seed);
+        let (l, r) = render_stereo(&RenderScene::new(scene.world_meshes(&scn.library), &light), &calib, 1.5, seed);
+        let left = vision::GreyImage::new(l.width, l.height, l.image).unwrap();
+        let right = vision::GreyImage::new(r.width, r.height, r.image).unwrap();
+        let params = vision::CannyParams::default();
+        let whole = marvin::front_end::run(&left, &right, &calib, &params);
+        let sliced = vision::slices::run_sliced(&left, &right, &calib, &params, 8);
+        let near = |p: [f64; 3], q: [f64; 3]| (0..3).map(|i| (p[i] - q[i]).powi(2)).sum::<f64>().sqrt() <= 5e-4;
+        for a in &whole.lines3d {
+            total += 1;
+            let twin =
+                sliced.lines3d.iter().any(|b| (near(a.a, b.a) && near(a.b, b.b)) || (near(a.a, b.b) && near(a.b, b.a)));
+            agree += usize::from(twin);
+        }
+    }
+    let fraction = agree as f64 / total as f64;
+    eprintln!("sliced vs whole: {agree} of {total} 3D lines agree ({fraction:.3})");
+    assert!(total > 100, "only {total} lines to compare");
+    assert!(fraction >= 0.98, "only {fraction:.3} of 3D lines agree");
 }

@@ -39,10 +39,8 @@ impl PinholeCamera {
         let x = z.cross(&up).normalize(); // image right
         let y = z.cross(&x); // image down
         let rot = nalgebra::Rotation3::from_basis_unchecked(&[x, y, z]);
-        let world_from_cam = Isometry3::from_parts(
-            position.coords.into(),
-            nalgebra::UnitQuaternion::from_rotation_matrix(&rot),
-        );
+        let world_from_cam =
+            Isometry3::from_parts(position.coords.into(), nalgebra::UnitQuaternion::from_rotation_matrix(&rot));
         PinholeCamera {
             width,
             height,
@@ -60,8 +58,7 @@ impl PinholeCamera {
 
     /// Projects a point given in this camera's frame; `None` behind the camera.
     pub fn project_cam(&self, p: &Point3<f64>) -> Option<Point2<f64>> {
-        (p.z > 1e-9)
-            .then(|| Point2::new(self.fx * p.x / p.z + self.cx, self.fy * p.y / p.z + self.cy))
+        (p.z > 1e-9).then(|| Point2::new(self.fx * p.x / p.z + self.cx, self.fy * p.y / p.z + self.cy))
     }
 
     /// Projects a world point to pixel coordinates; `None` behind the camera.
@@ -101,12 +98,7 @@ pub enum CalibrationError {
     #[error("{path}: {cause}")]
     Io { path: String, cause: std::io::Error },
     #[error("{path}: line {line}, column {column}: {message}")]
-    Parse {
-        path: String,
-        line: usize,
-        column: usize,
-        message: String,
-    },
+    Parse { path: String, line: usize, column: usize, message: String },
 }
 
 impl StereoCalibration {
@@ -124,10 +116,8 @@ impl StereoCalibration {
     /// written by `marvin render`, whose `calibration` member is read.
     pub fn load(path: &Path) -> Result<Self, CalibrationError> {
         let shown = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|cause| CalibrationError::Io {
-            path: shown.clone(),
-            cause,
-        })?;
+        let text =
+            std::fs::read_to_string(path).map_err(|cause| CalibrationError::Io { path: shown.clone(), cause })?;
         Self::from_json(&text).map_err(|e| CalibrationError::Parse {
             path: shown,
             line: e.line(),
@@ -180,10 +170,7 @@ mod tests {
         let up = cam.project_world(&Point3::new(0.0, 0.0, 0.05)).unwrap();
         assert!(up.y < 255.5, "world up should move up the image: {up}");
         let right = cam.project_world(&Point3::new(0.05, 0.0, 0.0)).unwrap();
-        assert!(
-            right.x > 255.5,
-            "world +x seen from -y should be image right: {right}"
-        );
+        assert!(right.x > 255.5, "world +x seen from -y should be image right: {right}");
     }
 
     #[test]
@@ -198,10 +185,7 @@ mod tests {
 
     #[test]
     fn calibration_round_trips_through_json() {
-        let calib = StereoCalibration {
-            left: camera(),
-            right: camera(),
-        };
+        let calib = StereoCalibration { left: camera(), right: camera() };
         let text = serde_json::to_string(&calib).unwrap();
         assert_eq!(StereoCalibration::from_json(&text).unwrap(), calib);
         let scene = format!("{{\"calibration\": {text}, \"objects\": []}}");

@@ -37,8 +37,7 @@ impl Extrusion {
     /// The closed surface: caps triangulated by ear clipping, one quad per side.
     pub fn mesh(&self, albedo: f32) -> TriMesh {
         let n = self.profile.len() as u32;
-        let mut vertices: Vec<Point3<f64>> =
-            self.profile.iter().map(|&p| self.lift(p, false)).collect();
+        let mut vertices: Vec<Point3<f64>> = self.profile.iter().map(|&p| self.lift(p, false)).collect();
         vertices.extend(self.profile.iter().map(|&p| self.lift(p, true)));
         let mut triangles = Vec::new();
         for [a, b, c] in polygon::triangulate(&self.profile) {
@@ -47,11 +46,7 @@ impl Extrusion {
             triangles.push([a, c, b]); // bottom, seen from -z
         }
         triangles.extend(side_quads(n, |i| i, |i| i + n));
-        TriMesh {
-            albedo: vec![albedo; triangles.len()],
-            vertices,
-            triangles,
-        }
+        TriMesh { albedo: vec![albedo; triangles.len()], vertices, triangles }
     }
 
     /// Exact convex decomposition: each convex piece of the profile, extruded, as its corners.
@@ -60,10 +55,7 @@ impl Extrusion {
             .into_iter()
             .map(|ring| {
                 let flat = ring.iter().map(|&i| self.profile[i]);
-                flat.clone()
-                    .map(|p| self.lift(p, false))
-                    .chain(flat.map(|p| self.lift(p, true)))
-                    .collect()
+                flat.clone().map(|p| self.lift(p, false)).chain(flat.map(|p| self.lift(p, true))).collect()
             })
             .collect()
     }
@@ -74,10 +66,7 @@ impl Extrusion {
     pub fn checker_mesh(&self, [nx, ny]: [u32; 2], albedo: f32) -> Result<TriMesh, String> {
         let (lo, hi) = self.rectangle()?;
         let grid = |i: u32, j: u32| {
-            Point2::new(
-                lo.x + (hi.x - lo.x) * i as f64 / nx as f64,
-                lo.y + (hi.y - lo.y) * j as f64 / ny as f64,
-            )
+            Point2::new(lo.x + (hi.x - lo.x) * i as f64 / nx as f64, lo.y + (hi.y - lo.y) * j as f64 / ny as f64)
         };
         let cols = nx + 1;
         let per_cap = cols * (ny + 1);
@@ -93,20 +82,11 @@ impl Extrusion {
         let (mut triangles, mut shade) = (Vec::new(), Vec::new());
         for j in 0..ny {
             for i in 0..nx {
-                let a = if (i + j) % 2 == 0 {
-                    albedo
-                } else {
-                    CHECKER_DARK
-                };
+                let a = if (i + j) % 2 == 0 { albedo } else { CHECKER_DARK };
                 let [p, q, r, s] = [(i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)];
                 let t = |(x, y): (u32, u32)| index(x, y, true);
                 let b = |(x, y): (u32, u32)| index(x, y, false);
-                triangles.extend([
-                    [t(p), t(q), t(r)],
-                    [t(p), t(r), t(s)],
-                    [b(p), b(r), b(q)],
-                    [b(p), b(s), b(r)],
-                ]);
+                triangles.extend([[t(p), t(q), t(r)], [t(p), t(r), t(s)], [b(p), b(r), b(q)], [b(p), b(s), b(r)]]);
                 shade.extend([a; 4]);
             }
         }
@@ -124,11 +104,7 @@ impl Extrusion {
         );
         shade.extend(std::iter::repeat_n(albedo, sides.len()));
         triangles.extend(sides);
-        Ok(TriMesh {
-            vertices,
-            triangles,
-            albedo: shade,
-        })
+        Ok(TriMesh { vertices, triangles, albedo: shade })
     }
 
     fn rectangle(&self) -> Result<(Point2<f64>, Point2<f64>), String> {
@@ -163,12 +139,7 @@ mod tests {
 
     fn square(side: f64) -> Vec<Point2<f64>> {
         let h = side / 2.0;
-        vec![
-            Point2::new(-h, -h),
-            Point2::new(h, -h),
-            Point2::new(h, h),
-            Point2::new(-h, h),
-        ]
+        vec![Point2::new(-h, -h), Point2::new(h, -h), Point2::new(h, h), Point2::new(-h, h)]
     }
 
     #[test]
@@ -186,25 +157,12 @@ mod tests {
         let m = e.checker_mesh([4, 3], 0.9).unwrap();
         assert!(m.is_closed());
         let dark = m.albedo.iter().filter(|&&a| a == CHECKER_DARK).count();
-        assert_eq!(
-            dark,
-            2 * 2 * 6,
-            "6 dark squares per cap, 2 triangles each, 2 caps"
-        );
+        assert_eq!(dark, 2 * 2 * 6, "6 dark squares per cap, 2 triangles each, 2 caps");
     }
 
     #[test]
     fn checker_needs_a_rectangle() {
-        let tri = vec![
-            Point2::new(0.0, 0.0),
-            Point2::new(1.0, 0.0),
-            Point2::new(0.0, 1.0),
-        ];
-        assert!(
-            Extrusion::new(tri, 0.1)
-                .unwrap()
-                .checker_mesh([2, 2], 0.9)
-                .is_err()
-        );
+        let tri = vec![Point2::new(0.0, 0.0), Point2::new(1.0, 0.0), Point2::new(0.0, 1.0)];
+        assert!(Extrusion::new(tri, 0.1).unwrap().checker_mesh([2, 2], 0.9).is_err());
     }
 }

@@ -26,10 +26,7 @@ pub struct LibraryError {
 impl Library {
     /// Loads and builds every model file in `dir`.
     pub fn load_dir(dir: &Path) -> Result<Library, LibraryError> {
-        let err = |path: &Path, message: String| LibraryError {
-            path: path.display().to_string(),
-            message,
-        };
+        let err = |path: &Path, message: String| LibraryError { path: path.display().to_string(), message };
         let entries = std::fs::read_dir(dir).map_err(|e| err(dir, e.to_string()))?;
         let mut files: Vec<PathBuf> = entries
             .filter_map(|e| e.ok().map(|e| e.path()))
@@ -76,16 +73,7 @@ mod tests {
     use crate::model::Collision;
     use nalgebra::{Point3, Vector3};
 
-    const LIBRARY: [&str; 8] = [
-        "block",
-        "flag",
-        "hex_prism",
-        "l_bracket",
-        "t_piece",
-        "u_channel",
-        "wedge",
-        "widget",
-    ];
+    const LIBRARY: [&str; 8] = ["block", "flag", "hex_prism", "l_bracket", "t_piece", "u_channel", "wedge", "widget"];
 
     /// Distances along the ray `o + t d` at which it crosses the mesh (Moller-Trumbore).
     fn crossings(mesh: &crate::TriMesh, o: Point3<f64>, d: Vector3<f64>) -> Vec<f64> {
@@ -117,11 +105,7 @@ mod tests {
         for (name, m) in &lib.models {
             assert!(m.mesh.is_closed(), "{name} is not closed");
             let size = m.extent().max() * 1e3;
-            let expected = if name == "flag" {
-                40.0..=120.0
-            } else {
-                30.0..=120.0
-            };
+            let expected = if name == "flag" { 40.0..=120.0 } else { 30.0..=120.0 };
             assert!(expected.contains(&size), "{name} is {size} mm across");
             assert!(m.mass.mass > 0.0 && m.mass.inertia.symmetric_eigenvalues().min() > 0.0);
             assert!(!m.grasps.is_empty(), "{name} has no grasp");
@@ -146,21 +130,10 @@ mod tests {
                 let jaw = g.model_from_gripper * Vector3::y();
                 let start = centre - jaw * 1.0;
                 let hits = crossings(&m.mesh, start, jaw);
-                assert_eq!(
-                    hits.len(),
-                    2,
-                    "{name}: the jaw line should cross the solid once"
-                );
+                assert_eq!(hits.len(), 2, "{name}: the jaw line should cross the solid once");
                 let width = hits[1] - hits[0];
-                assert!(
-                    (width - g.opening).abs() < 5e-4,
-                    "{name}: {width} m between jaws, file says {}",
-                    g.opening
-                );
-                assert!(
-                    hits[0] < 1.0 && 1.0 < hits[1],
-                    "{name}: the grasp centre is outside the solid"
-                );
+                assert!((width - g.opening).abs() < 5e-4, "{name}: {width} m between jaws, file says {}", g.opening);
+                assert!(hits[0] < 1.0 && 1.0 < hits[1], "{name}: the grasp centre is outside the solid");
             }
         }
     }
@@ -169,18 +142,12 @@ mod tests {
     fn exact_decompositions_cover_the_volume() {
         let lib = Library::load_default().unwrap();
         for (name, m) in &lib.models {
-            let Collision::ConvexPieces(pieces) = &m.collision else {
-                panic!("{name} is not exact")
-            };
+            let Collision::ConvexPieces(pieces) = &m.collision else { panic!("{name} is not exact") };
             // Each piece is a convex point set; its hull volume by the centroid fan of its faces is
             // awkward, so compare the summed profile areas times thickness for extrusions instead:
             // for any exact decomposition the mass of the pieces equals the mesh's.
             let total: f64 = pieces.iter().map(|p| hull_volume(p)).sum();
-            assert!(
-                (total - m.mass.volume).abs() < 1e-9,
-                "{name}: pieces {total} vs mesh {}",
-                m.mass.volume
-            );
+            assert!((total - m.mass.volume).abs() < 1e-9, "{name}: pieces {total} vs mesh {}", m.mass.volume);
         }
     }
 
@@ -201,33 +168,21 @@ mod tests {
                         n = -n;
                     }
                     let d = n.dot(&pts[i].coords);
-                    if pts.iter().any(|p| n.dot(&p.coords) > d + 1e-12)
-                        || faces.iter().any(|f| (f - n).norm() < 1e-9)
-                    {
+                    if pts.iter().any(|p| n.dot(&p.coords) > d + 1e-12) || faces.iter().any(|f| (f - n).norm() < 1e-9) {
                         continue;
                     }
                     faces.push(n);
                     // Area of the face polygon: the points on its plane, ordered around their mean.
-                    let on: Vec<Vector3<f64>> = pts
-                        .iter()
-                        .map(|p| p.coords)
-                        .filter(|p| (n.dot(p) - d).abs() < 1e-12)
-                        .collect();
+                    let on: Vec<Vector3<f64>> =
+                        pts.iter().map(|p| p.coords).filter(|p| (n.dot(p) - d).abs() < 1e-12).collect();
                     let m = on.iter().sum::<Vector3<f64>>() / on.len() as f64;
                     let u = (on[0] - m).normalize();
                     let v = n.cross(&u);
-                    let mut ring: Vec<(f64, Vector3<f64>)> = on
-                        .iter()
-                        .map(|p| ((p - m).dot(&v).atan2((p - m).dot(&u)), *p))
-                        .collect();
+                    let mut ring: Vec<(f64, Vector3<f64>)> =
+                        on.iter().map(|p| ((p - m).dot(&v).atan2((p - m).dot(&u)), *p)).collect();
                     ring.sort_by(|a, b| a.0.total_cmp(&b.0));
                     let area: f64 = (0..ring.len())
-                        .map(|q| {
-                            (ring[q].1 - m)
-                                .cross(&(ring[(q + 1) % ring.len()].1 - m))
-                                .dot(&n)
-                                / 2.0
-                        })
+                        .map(|q| (ring[q].1 - m).cross(&(ring[(q + 1) % ring.len()].1 - m)).dot(&n) / 2.0)
                         .sum();
                     volume += area * (d - n.dot(&c)) / 3.0;
                 }

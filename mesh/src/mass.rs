@@ -41,12 +41,7 @@ pub fn mass_properties(mesh: &TriMesh, density: f64) -> MassProperties {
     // Covariance about the centre of mass, then inertia = trace(C) I - C.
     let cov = density * second - mass * com * com.transpose();
     let inertia = Matrix3::identity() * cov.trace() - cov;
-    MassProperties {
-        volume,
-        mass,
-        centre_of_mass: com.into(),
-        inertia,
-    }
+    MassProperties { volume, mass, centre_of_mass: com.into(), inertia }
 }
 
 #[cfg(test)]
@@ -63,14 +58,7 @@ mod tests {
         let mass = 1000.0 * x * y * z;
         assert!((mp.mass - mass).abs() < 1e-12);
         assert!((mp.centre_of_mass - Point3::new(0.01, -0.02, 0.005)).norm() < 1e-12);
-        let expect =
-            Matrix3::from_diagonal(&Vector3::new(y * y + z * z, x * x + z * z, x * x + y * y))
-                * (mass / 12.0);
-        assert!(
-            (mp.inertia - expect).norm() < 1e-12,
-            "{} vs {}",
-            mp.inertia,
-            expect
-        );
+        let expect = Matrix3::from_diagonal(&Vector3::new(y * y + z * z, x * x + z * z, x * x + y * y)) * (mass / 12.0);
+        assert!((mp.inertia - expect).norm() < 1e-12, "{} vs {}", mp.inertia, expect);
     }
 }

@@ -91,36 +91,23 @@ impl Model {
             return Err(format!("albedo must be within 0-1, got {}", spec.albedo));
         }
         if spec.density_kg_m3.is_nan() || spec.density_kg_m3 <= 0.0 {
-            return Err(format!(
-                "density_kg_m3 must be positive, got {}",
-                spec.density_kg_m3
-            ));
+            return Err(format!("density_kg_m3 must be positive, got {}", spec.density_kg_m3));
         }
         let albedo = spec.albedo as f32;
         let (mesh, collision) = match &spec.shape {
-            ShapeSpec::Extrusion {
-                profile_mm,
-                thickness_mm,
-                checker,
-            } => {
-                let profile = profile_mm
-                    .iter()
-                    .map(|&[x, y]| Point2::new(x * MM, y * MM))
-                    .collect();
-                let ext = Extrusion::new(profile, thickness_mm * MM)
-                    .map_err(|e| format!("shape: {e}"))?;
+            ShapeSpec::Extrusion { profile_mm, thickness_mm, checker } => {
+                let profile = profile_mm.iter().map(|&[x, y]| Point2::new(x * MM, y * MM)).collect();
+                let ext = Extrusion::new(profile, thickness_mm * MM).map_err(|e| format!("shape: {e}"))?;
                 let mesh = match checker {
-                    Some(n) => ext
-                        .checker_mesh(*n, albedo)
-                        .map_err(|e| format!("shape.checker: {e}"))?,
+                    Some(n) => ext.checker_mesh(*n, albedo).map_err(|e| format!("shape.checker: {e}"))?,
                     None => ext.mesh(albedo),
                 };
                 (mesh, Collision::ConvexPieces(ext.convex_pieces()))
             }
             ShapeSpec::Obj { file } => {
                 let path = dir.join(file);
-                let mesh = crate::obj::load(&path, MM, albedo)
-                    .map_err(|e| format!("shape.file {}: {e}", path.display()))?;
+                let mesh =
+                    crate::obj::load(&path, MM, albedo).map_err(|e| format!("shape.file {}: {e}", path.display()))?;
                 let collision = if crate::obj::is_convex(&mesh, 1e-9) {
                     Collision::ConvexPieces(vec![mesh.vertices.clone()])
                 } else {

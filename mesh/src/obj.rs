@@ -6,11 +6,7 @@ use std::path::Path;
 
 /// Loads every object of an OBJ file as one closed mesh, scaling coordinates by `to_m`.
 pub fn load(path: &Path, to_m: f64, albedo: f32) -> Result<TriMesh, String> {
-    let options = tobj::LoadOptions {
-        triangulate: true,
-        single_index: true,
-        ..Default::default()
-    };
+    let options = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
     let (models, _materials) = tobj::load_obj(path, &options).map_err(|e| e.to_string())?;
     let mut mesh = TriMesh::default();
     for model in &models {
@@ -21,11 +17,7 @@ pub fn load(path: &Path, to_m: f64, albedo: f32) -> Result<TriMesh, String> {
                 .chunks_exact(3)
                 .map(|c| Point3::new(c[0] as f64, c[1] as f64, c[2] as f64) * to_m)
                 .collect(),
-            triangles: m
-                .indices
-                .chunks_exact(3)
-                .map(|c| [c[0], c[1], c[2]])
-                .collect(),
+            triangles: m.indices.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
             albedo: vec![albedo; m.indices.len() / 3],
         };
         mesh.append(&part);
@@ -59,11 +51,7 @@ pub fn weld(mesh: &TriMesh, tol: f64) -> TriMesh {
         .collect();
     TriMesh {
         vertices: kept,
-        triangles: mesh
-            .triangles
-            .iter()
-            .map(|t| t.map(|i| remap[i as usize]))
-            .collect(),
+        triangles: mesh.triangles.iter().map(|t| t.map(|i| remap[i as usize])).collect(),
         albedo: mesh.albedo.clone(),
     }
 }

@@ -40,9 +40,7 @@ pub fn validate_simple(pts: &[Point2<f64>]) -> Result<(), String> {
                 continue;
             }
             if segments_cross(pts[i], pts[(i + 1) % n], pts[j], pts[(j + 1) % n]) {
-                return Err(format!(
-                    "edge {i} crosses edge {j}: the profile is not simple"
-                ));
+                return Err(format!("edge {i} crosses edge {j}: the profile is not simple"));
             }
         }
     }
@@ -62,9 +60,9 @@ pub fn triangulate(pts: &[Point2<f64>]) -> Vec<[usize; 3]> {
         let ear = (0..n).find(|&i| {
             let (a, b, c) = (ring[(i + n - 1) % n], ring[i], ring[(i + 1) % n]);
             cross(pts[a], pts[b], pts[c]) > 1e-15
-                && ring.iter().all(|&k| {
-                    k == a || k == b || k == c || !point_in_triangle(pts[k], pts[a], pts[b], pts[c])
-                })
+                && ring
+                    .iter()
+                    .all(|&k| k == a || k == b || k == c || !point_in_triangle(pts[k], pts[a], pts[b], pts[c]))
         });
         // A simple polygon always has an ear; if rounding hides it, clip the flattest corner.
         let i = ear.unwrap_or(0);
@@ -87,15 +85,8 @@ fn is_convex(pts: &[Point2<f64>], ring: &[usize]) -> bool {
 /// Merges two counter-clockwise pieces that share the edge `a -> b` (in `p`) / `b -> a` (in `q`).
 fn merge_across(p: &[usize], q: &[usize], a: usize, b: usize) -> Vec<usize> {
     let rot = |ring: &[usize], start: usize| {
-        let s = ring
-            .iter()
-            .position(|&v| v == start)
-            .expect("shared vertex");
-        ring[s..]
-            .iter()
-            .chain(&ring[..s])
-            .copied()
-            .collect::<Vec<_>>()
+        let s = ring.iter().position(|&v| v == start).expect("shared vertex");
+        ring[s..].iter().chain(&ring[..s]).copied().collect::<Vec<_>>()
     };
     let mut merged = rot(p, b); // b ... a
     let from_a = rot(q, a); // a ... b
@@ -136,16 +127,9 @@ mod tests {
     use super::*;
 
     fn l_shape() -> Vec<Point2<f64>> {
-        [
-            (0.0, 0.0),
-            (3.0, 0.0),
-            (3.0, 1.0),
-            (1.0, 1.0),
-            (1.0, 2.0),
-            (0.0, 2.0),
-        ]
-        .map(|(x, y)| Point2::new(x, y))
-        .to_vec()
+        [(0.0, 0.0), (3.0, 0.0), (3.0, 1.0), (1.0, 1.0), (1.0, 2.0), (0.0, 2.0)]
+            .map(|(x, y)| Point2::new(x, y))
+            .to_vec()
     }
 
     fn area_of(pts: &[Point2<f64>], ring: &[usize]) -> f64 {

@@ -21,10 +21,7 @@ impl From<&Isometry3<f64>> for PoseRecord {
     fn from(iso: &Isometry3<f64>) -> Self {
         let t = iso.translation.vector;
         let q = iso.rotation.quaternion();
-        PoseRecord {
-            translation_m: [t.x, t.y, t.z],
-            rotation_xyzw: [q.i, q.j, q.k, q.w],
-        }
+        PoseRecord { translation_m: [t.x, t.y, t.z], rotation_xyzw: [q.i, q.j, q.k, q.w] }
     }
 }
 
@@ -32,10 +29,7 @@ impl From<&PoseRecord> for Isometry3<f64> {
     fn from(rec: &PoseRecord) -> Self {
         let [x, y, z, w] = rec.rotation_xyzw;
         let rotation = UnitQuaternion::from_quaternion(Quaternion::new(w, x, y, z));
-        Isometry3::from_parts(
-            Translation3::from(Vector3::from(rec.translation_m)),
-            rotation,
-        )
+        Isometry3::from_parts(Translation3::from(Vector3::from(rec.translation_m)), rotation)
     }
 }
 
@@ -65,10 +59,7 @@ pub mod iso_serde {
 /// A pose from a position and roll-pitch-yaw angles in degrees (rotation `Rz(yaw) Ry(pitch) Rx(roll)`).
 pub fn from_position_rpy_deg(position: [f64; 3], rpy_deg: [f64; 3]) -> Isometry3<f64> {
     let [r, p, y] = rpy_deg.map(f64::to_radians);
-    Isometry3::from_parts(
-        Translation3::from(Vector3::from(position)),
-        UnitQuaternion::from_euler_angles(r, p, y),
-    )
+    Isometry3::from_parts(Translation3::from(Vector3::from(position)), UnitQuaternion::from_euler_angles(r, p, y))
 }
 
 #[cfg(test)]

@@ -21,18 +21,14 @@ impl TriMesh {
     /// Unit outward normal of triangle `t` (zero for a degenerate triangle).
     pub fn face_normal(&self, t: usize) -> Vector3<f64> {
         let [a, b, c] = self.corners(t);
-        (b - a)
-            .cross(&(c - a))
-            .try_normalize(1e-15)
-            .unwrap_or_else(Vector3::zeros)
+        (b - a).cross(&(c - a)).try_normalize(1e-15).unwrap_or_else(Vector3::zeros)
     }
 
     /// Appends `other`, keeping its albedo.
     pub fn append(&mut self, other: &TriMesh) {
         let base = self.vertices.len() as u32;
         self.vertices.extend_from_slice(&other.vertices);
-        self.triangles
-            .extend(other.triangles.iter().map(|t| t.map(|i| i + base)));
+        self.triangles.extend(other.triangles.iter().map(|t| t.map(|i| i + base)));
         self.albedo.extend_from_slice(&other.albedo);
     }
 
@@ -55,19 +51,12 @@ impl TriMesh {
     /// Axis-aligned bounds `(min, max)`; `None` for an empty mesh.
     pub fn bounds(&self) -> Option<(Point3<f64>, Point3<f64>)> {
         let first = *self.vertices.first()?;
-        Some(
-            self.vertices
-                .iter()
-                .fold((first, first), |(lo, hi), p| (lo.inf(p), hi.sup(p))),
-        )
+        Some(self.vertices.iter().fold((first, first), |(lo, hi), p| (lo.inf(p), hi.sup(p))))
     }
 
     /// Radius of the smallest origin-centred sphere holding every vertex.
     pub fn radius(&self) -> f64 {
-        self.vertices
-            .iter()
-            .map(|p| p.coords.norm())
-            .fold(0.0, f64::max)
+        self.vertices.iter().map(|p| p.coords.norm()).fold(0.0, f64::max)
     }
 
     /// True when every edge is shared by exactly two triangles, in opposite directions.
@@ -78,9 +67,7 @@ impl TriMesh {
                 *directed.entry((t[k], t[(k + 1) % 3])).or_insert(0u32) += 1;
             }
         }
-        directed
-            .iter()
-            .all(|(&(a, b), &n)| n == 1 && directed.get(&(b, a)) == Some(&1))
+        directed.iter().all(|(&(a, b), &n)| n == 1 && directed.get(&(b, a)) == Some(&1))
     }
 
     /// A box with half extents `half`, centred at the origin, of one albedo.
@@ -93,23 +80,9 @@ impl TriMesh {
             )
         };
         // Faces as quads of corner indices, counter-clockwise seen from outside.
-        let quads = [
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-        ];
-        let triangles: Vec<[u32; 3]> = quads
-            .iter()
-            .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-            .collect();
-        TriMesh {
-            vertices: (0..8).map(corner).collect(),
-            albedo: vec![albedo; triangles.len()],
-            triangles,
-        }
+        let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+        let triangles: Vec<[u32; 3]> = quads.iter().flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]).collect();
+        TriMesh { vertices: (0..8).map(corner).collect(), albedo: vec![albedo; triangles.len()], triangles }
     }
 }
 
@@ -124,10 +97,7 @@ mod tests {
         for t in 0..m.triangles.len() {
             let [a, b, c] = m.corners(t);
             let centroid = (a.coords + b.coords + c.coords) / 3.0;
-            assert!(
-                m.face_normal(t).dot(&centroid) > 0.0,
-                "triangle {t} faces inwards"
-            );
+            assert!(m.face_normal(t).dot(&centroid) > 0.0, "triangle {t} faces inwards");
         }
     }
 }

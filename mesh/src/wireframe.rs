@@ -37,10 +37,7 @@ pub fn feature_edges(mesh: &TriMesh, min_angle_deg: f64) -> Vec<Segment3> {
     for (t, tri) in mesh.triangles.iter().enumerate() {
         for k in 0..3 {
             let (a, b) = (tri[k], tri[(k + 1) % 3]);
-            faces_of_edge
-                .entry((a.min(b), a.max(b)))
-                .or_default()
-                .push(t);
+            faces_of_edge.entry((a.min(b), a.max(b))).or_default().push(t);
         }
     }
     let cos_min = min_angle_deg.to_radians().cos();
@@ -92,10 +89,7 @@ fn merge_collinear(mesh: &TriMesh, edges: &[(u32, u32)]) -> Vec<Segment3> {
                 ends[end] = far;
             }
         }
-        out.push(Segment3 {
-            a: p(ends[0]),
-            b: p(ends[1]),
-        });
+        out.push(Segment3 { a: p(ends[0]), b: p(ends[1]) });
     }
     out
 }
@@ -136,10 +130,7 @@ mod tests {
         ];
         let m = Extrusion::new(prof, 0.01).unwrap().mesh(1.0);
         let edges = feature_edges(&m, FEATURE_ANGLE_DEG);
-        let vertical = edges
-            .iter()
-            .filter(|s| s.direction().z.abs() > 0.99)
-            .count();
+        let vertical = edges.iter().filter(|s| s.direction().z.abs() > 0.99).count();
         assert_eq!(vertical, 4, "5 profile corners, one of them too shallow");
     }
 }

@@ -19,13 +19,8 @@ pub fn pose(iso: &Isometry3<f64>) -> Pose {
 
 pub fn iso(pose: &Pose) -> Isometry3<f64> {
     let (t, q) = (pose.translation, pose.rotation);
-    let rotation = UnitQuaternion::from_quaternion(Quaternion::new(
-        q.w as f64, q.x as f64, q.y as f64, q.z as f64,
-    ));
-    Isometry3::from_parts(
-        Translation3::new(t.x as f64, t.y as f64, t.z as f64),
-        rotation,
-    )
+    let rotation = UnitQuaternion::from_quaternion(Quaternion::new(q.w as f64, q.x as f64, q.y as f64, q.z as f64));
+    Isometry3::from_parts(Translation3::new(t.x as f64, t.y as f64, t.z as f64), rotation)
 }
 
 pub fn matrix(m: &Matrix3<f64>) -> Matrix {
@@ -44,16 +39,7 @@ mod tests {
         let p = Point3::new(0.01, 0.02, -0.03);
         let moved_na = iso0 * p;
         let moved_glam = pose(&iso0).transform_point(point(&p));
-        assert!(
-            (moved_na
-                - Point3::new(
-                    moved_glam.x as f64,
-                    moved_glam.y as f64,
-                    moved_glam.z as f64
-                ))
-            .norm()
-                < 1e-6
-        );
+        assert!((moved_na - Point3::new(moved_glam.x as f64, moved_glam.y as f64, moved_glam.z as f64)).norm() < 1e-6);
         let back = iso(&pose(&iso0));
         assert!((back.to_homogeneous() - iso0.to_homogeneous()).norm() < 1e-6);
     }

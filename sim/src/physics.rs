@@ -61,19 +61,11 @@ impl Cell {
                 ColliderBuilder::cuboid(h.x, h.y, h.z).friction(friction),
             );
         }
-        Cell {
-            world,
-            objects: Vec::new(),
-            friction,
-        }
+        Cell { world, objects: Vec::new(), friction }
     }
 
     /// Adds a dynamic body for `model` at `world_from_model`; the body frame is the model frame.
-    pub fn add_object(
-        &mut self,
-        model: &Model,
-        world_from_model: &Isometry3<f64>,
-    ) -> RigidBodyHandle {
+    pub fn add_object(&mut self, model: &Model, world_from_model: &Isometry3<f64>) -> RigidBodyHandle {
         let mp = &model.mass;
         let mass = MassProperties::with_inertia_matrix(
             convert::point(&mp.centre_of_mass),
@@ -84,10 +76,8 @@ impl Cell {
             .pose(convert::pose(world_from_model))
             .additional_mass_properties(mass)
             .ccd_enabled(true);
-        let collider = ColliderBuilder::new(collision_shape(model))
-            .density(0.0)
-            .friction(self.friction)
-            .restitution(0.05);
+        let collider =
+            ColliderBuilder::new(collision_shape(model)).density(0.0).friction(self.friction).restitution(0.05);
         let (handle, _) = self.world.insert(body, collider);
         self.objects.push(handle);
         handle
@@ -105,11 +95,7 @@ impl Cell {
             self.world.step();
             steps += 1;
             let (lin, ang) = self.max_speeds();
-            calm_s = if lin < REST_LINEAR && ang < REST_ANGULAR {
-                calm_s + dt
-            } else {
-                0.0
-            };
+            calm_s = if lin < REST_LINEAR && ang < REST_ANGULAR { calm_s + dt } else { 0.0 };
             let simulated_s = steps as f64 * dt;
             if calm_s >= REST_HOLD_S || simulated_s >= limit_s {
                 return SettleReport {
@@ -135,13 +121,7 @@ impl Cell {
                 if !(self.is_object(a) || self.is_object(b)) {
                     continue;
                 }
-                let contact = rapier3d::parry::query::contact(
-                    a.position(),
-                    a.shape(),
-                    b.position(),
-                    b.shape(),
-                    0.0,
-                );
+                let contact = rapier3d::parry::query::contact(a.position(), a.shape(), b.position(), b.shape(), 0.0);
                 if let Ok(Some(c)) = contact {
                     deepest = deepest.max(-c.dist);
                 }
@@ -175,11 +155,7 @@ pub fn collision_shape(model: &Model) -> SharedShape {
                     (Pose::IDENTITY, hull)
                 })
                 .collect();
-            if hulls.len() == 1 {
-                hulls.remove(0).1
-            } else {
-                SharedShape::compound(hulls)
-            }
+            if hulls.len() == 1 { hulls.remove(0).1 } else { SharedShape::compound(hulls) }
         }
         Collision::Decompose => {
             let pts: Vec<Vector> = model.mesh.vertices.iter().map(convert::point).collect();

@@ -43,11 +43,7 @@ pub struct Light {
 
 impl From<&crate::world::LightSpec> for Light {
     fn from(l: &crate::world::LightSpec) -> Self {
-        Light {
-            towards_light: Vector3::from(l.direction).normalize(),
-            diffuse: l.diffuse,
-            ambient: l.ambient,
-        }
+        Light { towards_light: Vector3::from(l.direction).normalize(), diffuse: l.diffuse, ambient: l.ambient }
     }
 }
 
@@ -136,26 +132,14 @@ pub fn render(scene: &RenderScene, cam: &PinholeCamera, noise_sigma: f64, seed: 
             || vec![NOTHING; TILE * TILE],
             |pixels, k| {
                 let (tx, ty) = (k % tiles_x, k / tiles_x);
-                let area = TileArea {
-                    x0: tx * TILE,
-                    y0: ty * TILE,
-                    w: TILE.min(w - tx * TILE),
-                    h: TILE.min(h - ty * TILE),
-                };
-                let tile_seed = seed
-                    .wrapping_mul(0x9E37_79B9_7F4A_7C15)
-                    .wrapping_add(k as u64);
+                let area =
+                    TileArea { x0: tx * TILE, y0: ty * TILE, w: TILE.min(w - tx * TILE), h: TILE.min(h - ty * TILE) };
+                let tile_seed = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(k as u64);
                 draw_tile(&tris, &bins[k], area, noise_sigma, tile_seed, pixels)
             },
         )
         .collect();
-    let mut frame = Frame {
-        width: w,
-        height: h,
-        image: vec![0; w * h],
-        depth: vec![0.0; w * h],
-        ids: vec![0; w * h],
-    };
+    let mut frame = Frame { width: w, height: h, image: vec![0; w * h], depth: vec![0.0; w * h], ids: vec![0; w * h] };
     for t in &tiles {
         for row in 0..t.area.h {
             let (src, dst) = (row * t.area.w, (t.area.y0 + row) * w + t.area.x0);
@@ -168,22 +152,10 @@ pub fn render(scene: &RenderScene, cam: &PinholeCamera, noise_sigma: f64, seed: 
 }
 
 /// Renders both cameras of the rig at once; the right camera's noise uses the next seed.
-pub fn render_stereo(
-    scene: &RenderScene,
-    calib: &StereoCalibration,
-    noise_sigma: f64,
-    seed: u64,
-) -> (Frame, Frame) {
+pub fn render_stereo(scene: &RenderScene, calib: &StereoCalibration, noise_sigma: f64, seed: u64) -> (Frame, Frame) {
     rayon::join(
         || render(scene, &calib.left, noise_sigma, seed.wrapping_mul(2)),
-        || {
-            render(
-                scene,
-                &calib.right,
-                noise_sigma,
-                seed.wrapping_mul(2).wrapping_add(1),
-            )
-        },
+        || render(scene, &calib.right, noise_sigma, seed.wrapping_mul(2).wrapping_add(1)),
     )
 }
 
@@ -202,16 +174,8 @@ fn project(scene: &RenderScene, cam: &PinholeCamera) -> Vec<ScreenTriangle> {
             continue;
         }
         let polygon = clip_near(&corners);
-        let pixels: Vec<[f64; 3]> = polygon
-            .iter()
-            .map(|p| {
-                [
-                    cam.fx * p.x / p.z + cam.cx,
-                    cam.fy * p.y / p.z + cam.cy,
-                    1.0 / p.z,
-                ]
-            })
-            .collect();
+        let pixels: Vec<[f64; 3]> =
+            polygon.iter().map(|p| [cam.fx * p.x / p.z + cam.cx, cam.fy * p.y / p.z + cam.cy, 1.0 / p.z]).collect();
         for k in 1..pixels.len().saturating_sub(1) {
             if let Some(s) = setup([pixels[0], pixels[k], pixels[k + 1]], cam, t) {
                 out.push(s);
@@ -238,8 +202,7 @@ fn clip_near(tri: &[Point3<f64>; 3]) -> Vec<Point3<f64>> {
 }
 
 fn setup(v: [[f64; 3]; 3], cam: &PinholeCamera, t: &ShadedTriangle) -> Option<ScreenTriangle> {
-    let area2 =
-        (v[1][0] - v[0][0]) * (v[2][1] - v[0][1]) - (v[2][0] - v[0][0]) * (v[1][1] - v[0][1]);
+    let area2 = (v[1][0] - v[0][0]) * (v[2][1] - v[0][1]) - (v[2][0] - v[0][0]) * (v[1][1] - v[0][1]);
     if area2.abs() < 1e-12 {
         return None;
     }
@@ -255,14 +218,10 @@ fn setup(v: [[f64; 3]; 3], cam: &PinholeCamera, t: &ShadedTriangle) -> Option<Sc
     let p = (dz1 * dy2 - dz2 * dy1) / area2;
     let q = (dx1 * dz2 - dx2 * dz1) / area2;
     let r = v[0][2] - p * v[0][0] - q * v[0][1];
-    let (minx, maxx) = (
-        v.iter().map(|c| c[0]).fold(f64::MAX, f64::min),
-        v.iter().map(|c| c[0]).fold(f64::MIN, f64::max),
-    );
-    let (miny, maxy) = (
-        v.iter().map(|c| c[1]).fold(f64::MAX, f64::min),
-        v.iter().map(|c| c[1]).fold(f64::MIN, f64::max),
-    );
+    let (minx, maxx) =
+        (v.iter().map(|c| c[0]).fold(f64::MAX, f64::min), v.iter().map(|c| c[0]).fold(f64::MIN, f64::max));
+    let (miny, maxy) =
+        (v.iter().map(|c| c[1]).fold(f64::MAX, f64::min), v.iter().map(|c| c[1]).fold(f64::MIN, f64::max));
     let bbox = [
         ((minx - 0.5).ceil() as i64).max(0),
         ((miny - 0.5).ceil() as i64).max(0),
@@ -308,12 +267,8 @@ struct PixelSamples {
     centre: u32,
 }
 
-const NOTHING: PixelSamples = PixelSamples {
-    inv_z: [0.0; SAMPLES],
-    shade: [0.0; SAMPLES],
-    centre_inv_z: 0.0,
-    centre: NO_TRIANGLE,
-};
+const NOTHING: PixelSamples =
+    PixelSamples { inv_z: [0.0; SAMPLES], shade: [0.0; SAMPLES], centre_inv_z: 0.0, centre: NO_TRIANGLE };
 
 /// One triangle's planes relative to a tile's origin, with every sample's offset from the
 /// pixel centre already applied to each plane.
@@ -327,11 +282,7 @@ struct TilePlanes {
 }
 
 impl TilePlanes {
-    fn new(
-        t: &ScreenTriangle,
-        area: &TileArea,
-        (ox, oy): &([f32; SAMPLES], [f32; SAMPLES]),
-    ) -> Self {
+    fn new(t: &ScreenTriangle, area: &TileArea, (ox, oy): &([f32; SAMPLES], [f32; SAMPLES])) -> Self {
         // Planes relative to the tile origin keep f32 exact enough.
         let (x0, y0) = (area.x0 as f64, area.y0 as f64);
         let rel = |[a, b, c]: [f64; 3]| [a as f32, b as f32, (c + a * x0 + b * y0) as f32];
@@ -377,9 +328,7 @@ fn draw_tile(
         if corner_z.iter().all(|&z| z < occluded_beyond) {
             continue;
         }
-        let edge_at_corners = pl
-            .edges
-            .map(|[a, b, c]| corners.map(|(x, y)| a * x + b * y + c));
+        let edge_at_corners = pl.edges.map(|[a, b, c]| corners.map(|(x, y)| a * x + b * y + c));
         if edge_at_corners.iter().any(|e| e.iter().all(|&v| v < 0.0)) {
             continue; // the tile lies wholly outside one edge
         }
@@ -393,14 +342,7 @@ fn draw_tile(
 }
 
 /// Draws one triangle into a tile's samples; `whole` when it covers every sample of the tile.
-fn rasterise(
-    pixels: &mut [PixelSamples],
-    t: &ScreenTriangle,
-    ti: u32,
-    pl: &TilePlanes,
-    area: &TileArea,
-    whole: bool,
-) {
+fn rasterise(pixels: &mut [PixelSamples], t: &ScreenTriangle, ti: u32, pl: &TilePlanes, area: &TileArea, whole: bool) {
     let xs = (t.bbox[0] as usize).max(area.x0)..=(t.bbox[2] as usize).min(area.x0 + area.w - 1);
     let ys = (t.bbox[1] as usize).max(area.y0)..=(t.bbox[3] as usize).min(area.y0 + area.h - 1);
     for py in ys {
@@ -445,9 +387,8 @@ fn cover_all(p: &mut PixelSamples, zc: f32, dz: &[f32; SAMPLES], shade: f32) {
 #[inline(always)]
 fn cover_some(p: &mut PixelSamples, zc: f32, pl: &TilePlanes, ec: [f32; 3], shade: f32) {
     let [e0, e1, e2] = &pl.edge_at_sample;
-    let inside: [bool; SAMPLES] = std::array::from_fn(|s| {
-        (ec[0] + e0[s] >= 0.0) & (ec[1] + e1[s] >= 0.0) & (ec[2] + e2[s] >= 0.0)
-    });
+    let inside: [bool; SAMPLES] =
+        std::array::from_fn(|s| (ec[0] + e0[s] >= 0.0) & (ec[1] + e1[s] >= 0.0) & (ec[2] + e2[s] >= 0.0));
     let zs: [f32; SAMPLES] = std::array::from_fn(|s| zc + pl.inv_z_at_sample[s]);
     keep_nearer(p, &zs, &inside, shade);
 }
@@ -456,42 +397,20 @@ fn cover_some(p: &mut PixelSamples, zc: f32, pl: &TilePlanes, ec: [f32; 3], shad
 /// Written as whole-array selects on bits, not conditional stores, so that it vectorises.
 #[inline(always)]
 fn keep_nearer(p: &mut PixelSamples, zs: &[f32; SAMPLES], inside: &[bool; SAMPLES], shade: f32) {
-    let mask: [u32; SAMPLES] = std::array::from_fn(|s| {
-        if inside[s] & (zs[s] > p.inv_z[s]) {
-            u32::MAX
-        } else {
-            0
-        }
-    });
-    let pick =
-        |new: f32, old: f32, m: u32| f32::from_bits((new.to_bits() & m) | (old.to_bits() & !m));
+    let mask: [u32; SAMPLES] = std::array::from_fn(|s| if inside[s] & (zs[s] > p.inv_z[s]) { u32::MAX } else { 0 });
+    let pick = |new: f32, old: f32, m: u32| f32::from_bits((new.to_bits() & m) | (old.to_bits() & !m));
     p.inv_z = std::array::from_fn(|s| pick(zs[s], p.inv_z[s], mask[s]));
     p.shade = std::array::from_fn(|s| pick(shade, p.shade[s], mask[s]));
 }
 
-fn resolve(
-    tris: &[ScreenTriangle],
-    area: TileArea,
-    pixels: &[PixelSamples],
-    noise_sigma: f64,
-    seed: u64,
-) -> TileOut {
+fn resolve(tris: &[ScreenTriangle], area: TileArea, pixels: &[PixelSamples], noise_sigma: f64, seed: u64) -> TileOut {
     let n = area.w * area.h;
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
     let noise = Normal::new(0.0f32, noise_sigma as f32).expect("noise sigma is checked to be >= 0");
-    let mut out = TileOut {
-        area,
-        image: vec![0; n],
-        depth: vec![0.0; n],
-        ids: vec![0; n],
-    };
+    let mut out = TileOut { area, image: vec![0; n], depth: vec![0.0; n], ids: vec![0; n] };
     for (p, px) in pixels.iter().enumerate() {
         let sum: f32 = px.shade.iter().sum();
-        let grain = if noise_sigma > 0.0 {
-            noise.sample(&mut rng)
-        } else {
-            0.0
-        };
+        let grain = if noise_sigma > 0.0 { noise.sample(&mut rng) } else { 0.0 };
         // Clamped to 0-255 first, so adding 0.5 and truncating rounds to nearest.
         out.image[p] = ((255.0 * sum / SAMPLES as f32 + grain).clamp(0.0, 255.0) + 0.5) as u8;
         if px.centre != NO_TRIANGLE {
@@ -521,14 +440,8 @@ mod tests {
     #[test]
     fn n_rooks_samples_cover_every_row_and_column_once() {
         let (ox, oy) = sample_offsets();
-        let mut rows: Vec<i32> = oy[..SAMPLES]
-            .iter()
-            .map(|o| ((o + 0.5) * 16.0).floor() as i32)
-            .collect();
-        let mut cols: Vec<i32> = ox[..SAMPLES]
-            .iter()
-            .map(|o| ((o + 0.5) * 16.0).floor() as i32)
-            .collect();
+        let mut rows: Vec<i32> = oy[..SAMPLES].iter().map(|o| ((o + 0.5) * 16.0).floor() as i32).collect();
+        let mut cols: Vec<i32> = ox[..SAMPLES].iter().map(|o| ((o + 0.5) * 16.0).floor() as i32).collect();
         rows.sort();
         cols.sort();
         assert_eq!(rows, (0..16).collect::<Vec<_>>());
@@ -541,20 +454,13 @@ mod tests {
         // square spans u from 41.3 to 61.5 (x from 0.098 to 0.3 m at 1 m, f = 100 px).
         let square = TriMesh::cuboid(Vector3::new(0.101, 0.1, 1e-7), 1.0)
             .transformed(&nalgebra::Isometry3::translation(0.199, 0.0, 0.0));
-        let light = Light {
-            towards_light: Vector3::z(),
-            diffuse: 0.0,
-            ambient: 1.0,
-        };
+        let light = Light { towards_light: Vector3::z(), diffuse: 0.0, ambient: 1.0 };
         let scene = RenderScene::new([(1, square)], &light);
         let f = render(&scene, &overhead_camera(), 0.0, 0);
         let row = 32 * 64;
         let total: f64 = (0..64).map(|u| f.image[row + u] as f64 / 255.0).sum();
         // Summed coverage along a row is the covered length, to 1/16 px per edge.
-        assert!(
-            (total - 20.2).abs() < 2.0 / 16.0,
-            "covered {total} px of the row, expected 20.2"
-        );
+        assert!((total - 20.2).abs() < 2.0 / 16.0, "covered {total} px of the row, expected 20.2");
         assert_eq!(f.image[row + 50], 255);
         assert_eq!(f.image[row + 20], 0);
     }
@@ -563,11 +469,7 @@ mod tests {
     fn depth_is_along_the_optical_axis_and_ids_mark_objects() {
         let plate = TriMesh::cuboid(Vector3::new(1.0, 1.0, 0.01), 0.5)
             .transformed(&nalgebra::Isometry3::translation(0.0, 0.0, -0.01));
-        let light = Light {
-            towards_light: Vector3::z(),
-            diffuse: 1.0,
-            ambient: 0.0,
-        };
+        let light = Light { towards_light: Vector3::z(), diffuse: 1.0, ambient: 0.0 };
         let scene = RenderScene::new([(7, plate)], &light);
         let f = render(&scene, &overhead_camera(), 0.0, 0);
         for p in [0, 64 * 32 + 5, 64 * 64 - 1] {
@@ -580,32 +482,15 @@ mod tests {
     #[test]
     fn noise_has_the_asked_spread_and_follows_the_seed() {
         let plate = TriMesh::cuboid(Vector3::new(1.0, 1.0, 0.01), 0.5);
-        let light = Light {
-            towards_light: Vector3::z(),
-            diffuse: 1.0,
-            ambient: 0.0,
-        };
+        let light = Light { towards_light: Vector3::z(), diffuse: 1.0, ambient: 0.0 };
         let scene = RenderScene::new([(1, plate)], &light);
         let cam = overhead_camera();
-        let (a, b, c) = (
-            render(&scene, &cam, 1.5, 3),
-            render(&scene, &cam, 1.5, 3),
-            render(&scene, &cam, 1.5, 4),
-        );
+        let (a, b, c) = (render(&scene, &cam, 1.5, 3), render(&scene, &cam, 1.5, 3), render(&scene, &cam, 1.5, 4));
         assert_eq!(a, b);
         assert_ne!(a.image, c.image);
         let mean = 255.0 * 0.5;
-        let var = a
-            .image
-            .iter()
-            .map(|&g| (g as f64 - mean).powi(2))
-            .sum::<f64>()
-            / a.image.len() as f64;
+        let var = a.image.iter().map(|&g| (g as f64 - mean).powi(2)).sum::<f64>() / a.image.len() as f64;
         // Rounding to integers adds 1/12 to the variance.
-        assert!(
-            (var.sqrt() - (1.5f64.powi(2) + 1.0 / 12.0).sqrt()).abs() < 0.1,
-            "sigma {}",
-            var.sqrt()
-        );
+        assert!((var.sqrt() - (1.5f64.powi(2) + 1.0 / 12.0).sqrt()).abs() < 0.1, "sigma {}", var.sqrt());
     }
 }

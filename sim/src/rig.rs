@@ -6,9 +6,7 @@ use nalgebra::{Point3, Vector3};
 
 pub fn camera(spec: &CameraSpec) -> PinholeCamera {
     let [w, h] = spec.resolution;
-    let principal = spec
-        .principal_point
-        .unwrap_or([(w as f64 - 1.0) / 2.0, (h as f64 - 1.0) / 2.0]);
+    let principal = spec.principal_point.unwrap_or([(w as f64 - 1.0) / 2.0, (h as f64 - 1.0) / 2.0]);
     PinholeCamera::looking_at(
         (w, h),
         spec.focal_px,
@@ -20,8 +18,5 @@ pub fn camera(spec: &CameraSpec) -> PinholeCamera {
 }
 
 pub fn calibration(rig: &RigSpec) -> StereoCalibration {
-    StereoCalibration {
-        left: camera(&rig.left),
-        right: camera(&rig.right),
-    }
+    StereoCalibration { left: camera(&rig.left), right: camera(&rig.right) }
 }

@@ -30,16 +30,10 @@ impl Scenario {
     pub fn load(path: &Path) -> Result<Scenario, ScenarioError> {
         let world = WorldFile::load(path)?;
         let library = Library::load_dir(&world.library_dir(path))?;
-        let text = std::fs::read_to_string(path).map_err(|cause| WorldError::Io {
-            file: path.display().to_string(),
-            cause,
-        })?;
+        let text = std::fs::read_to_string(path)
+            .map_err(|cause| WorldError::Io { file: path.display().to_string(), cause })?;
         world.check_models(&library, &text, &path.display().to_string())?;
-        Ok(Scenario {
-            path: path.to_path_buf(),
-            world,
-            library,
-        })
+        Ok(Scenario { path: path.to_path_buf(), world, library })
     }
 }
 
@@ -77,18 +71,8 @@ pub fn static_boxes(world: &WorldFile) -> Vec<StaticBox> {
     let t = &world.table;
     let (h, [sx, sy]) = (t.height_m, t.size_m);
     let mut boxes = vec![
-        StaticBox::at(
-            "floor".into(),
-            [0.0, 0.0, -h - 0.05],
-            [10.0, 10.0, 0.05],
-            t.floor_albedo,
-        ),
-        StaticBox::at(
-            "table".into(),
-            [0.0, 0.0, -h / 2.0],
-            [sx / 2.0, sy / 2.0, h / 2.0],
-            t.albedo,
-        ),
+        StaticBox::at("floor".into(), [0.0, 0.0, -h - 0.05], [10.0, 10.0, 0.05], t.floor_albedo),
+        StaticBox::at("table".into(), [0.0, 0.0, -h / 2.0], [sx / 2.0, sy / 2.0, h / 2.0], t.albedo),
     ];
     for b in &world.bins {
         let ([cx, cy], [ix, iy, wall_h], w) = (b.centre_m, b.size_m, b.wall_m);
@@ -96,36 +80,11 @@ pub fn static_boxes(world: &WorldFile) -> Vec<StaticBox> {
         let z = w + wall_h / 2.0;
         let name = |part: &str| format!("bin {} {part}", b.name);
         boxes.extend([
-            StaticBox::at(
-                name("floor"),
-                [cx, cy, w / 2.0],
-                [ox, oy, w / 2.0],
-                b.albedo,
-            ),
-            StaticBox::at(
-                name("wall -x"),
-                [cx - ox + w / 2.0, cy, z],
-                [w / 2.0, oy, wall_h / 2.0],
-                b.albedo,
-            ),
-            StaticBox::at(
-                name("wall +x"),
-                [cx + ox - w / 2.0, cy, z],
-                [w / 2.0, oy, wall_h / 2.0],
-                b.albedo,
-            ),
-            StaticBox::at(
-                name("wall -y"),
-                [cx, cy - oy + w / 2.0, z],
-                [ix / 2.0, w / 2.0, wall_h / 2.0],
-                b.albedo,
-            ),
-            StaticBox::at(
-                name("wall +y"),
-                [cx, cy + oy - w / 2.0, z],
-                [ix / 2.0, w / 2.0, wall_h / 2.0],
-                b.albedo,
-            ),
+            StaticBox::at(name("floor"), [cx, cy, w / 2.0], [ox, oy, w / 2.0], b.albedo),
+            StaticBox::at(name("wall -x"), [cx - ox + w / 2.0, cy, z], [w / 2.0, oy, wall_h / 2.0], b.albedo),
+            StaticBox::at(name("wall +x"), [cx + ox - w / 2.0, cy, z], [w / 2.0, oy, wall_h / 2.0], b.albedo),
+            StaticBox::at(name("wall -y"), [cx, cy - oy + w / 2.0, z], [ix / 2.0, w / 2.0, wall_h / 2.0], b.albedo),
+            StaticBox::at(name("wall +y"), [cx, cy + oy - w / 2.0, z], [ix / 2.0, w / 2.0, wall_h / 2.0], b.albedo),
         ]);
     }
     boxes
@@ -163,9 +122,7 @@ impl Scene {
             if valid || drops == MAX_DROPS {
                 return scene;
             }
-            drop_seed = drop_seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
+            drop_seed = drop_seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
         }
         unreachable!("the last drop always returns")
     }
@@ -174,41 +131,22 @@ impl Scene {
         let objects = initial_poses(scn, drop_seed);
         let statics = static_boxes(&scn.world);
         let mut cell = Cell::new(&scn.world.physics, &statics);
-        let bodies: Vec<_> = objects
-            .iter()
-            .map(|o| cell.add_object(&scn.library.models[&o.model], &o.world_from_model))
-            .collect();
+        let bodies: Vec<_> =
+            objects.iter().map(|o| cell.add_object(&scn.library.models[&o.model], &o.world_from_model)).collect();
         let settle = cell.settle(scn.world.physics.settle_limit_s);
         let objects = objects
             .into_iter()
             .zip(bodies)
-            .map(|(o, body)| SceneObject {
-                world_from_model: cell.pose(body),
-                ..o
-            })
+            .map(|(o, body)| SceneObject { world_from_model: cell.pose(body), ..o })
             .collect();
-        Scene {
-            seed,
-            statics,
-            objects,
-            settle,
-        }
+        Scene { seed, statics, objects, settle }
     }
 
     /// Every surface in world coordinates, tagged with its id-map value (0 for static parts).
-    pub fn world_meshes<'a>(
-        &'a self,
-        library: &'a Library,
-    ) -> impl Iterator<Item = (u32, TriMesh)> + 'a {
+    pub fn world_meshes<'a>(&'a self, library: &'a Library) -> impl Iterator<Item = (u32, TriMesh)> + 'a {
         let statics = self.statics.iter().map(|b| (0, b.mesh()));
-        let objects = self.objects.iter().map(|o| {
-            (
-                o.id,
-                library.models[&o.model]
-                    .mesh
-                    .transformed(&o.world_from_model),
-            )
-        });
+        let objects =
+            self.objects.iter().map(|o| (o.id, library.models[&o.model].mesh.transformed(&o.world_from_model)));
         statics.chain(objects)
     }
 }
@@ -220,18 +158,9 @@ fn initial_poses(scn: &Scenario, seed: u64) -> Vec<SceneObject> {
         .world
         .objects
         .iter()
-        .map(|o| {
-            (
-                o.model.clone(),
-                mesh::pose::from_position_rpy_deg(o.position_m, o.rpy_deg),
-            )
-        })
+        .map(|o| (o.model.clone(), mesh::pose::from_position_rpy_deg(o.position_m, o.rpy_deg)))
         .enumerate()
-        .map(|(i, (model, pose))| SceneObject {
-            id: i as u32 + 1,
-            model,
-            world_from_model: pose,
-        })
+        .map(|(i, (model, pose))| SceneObject { id: i as u32 + 1, model, world_from_model: pose })
         .collect();
     let Some(clutter) = &scn.world.clutter else {
         return out;
@@ -239,17 +168,9 @@ fn initial_poses(scn: &Scenario, seed: u64) -> Vec<SceneObject> {
     let mut rng = StdRng::seed_from_u64(seed);
     let mut spheres: Vec<(Point3<f64>, f64)> = out
         .iter()
-        .map(|o| {
-            (
-                o.world_from_model * Point3::origin(),
-                scn.library.models[&o.model].mesh.radius(),
-            )
-        })
+        .map(|o| (o.world_from_model * Point3::origin(), scn.library.models[&o.model].mesh.radius()))
         .collect();
-    let names = clutter
-        .objects
-        .iter()
-        .flat_map(|c| std::iter::repeat_n(&c.model, c.count as usize));
+    let names = clutter.objects.iter().flat_map(|c| std::iter::repeat_n(&c.model, c.count as usize));
     for model in names {
         let radius = scn.library.models[model].mesh.radius();
         let (r, [lo, hi]) = (&clutter.region_m, clutter.drop_height_m);
@@ -262,10 +183,7 @@ fn initial_poses(scn: &Scenario, seed: u64) -> Vec<SceneObject> {
                 rng.random_range(r.min[1]..=r.max[1]),
                 rng.random_range(lo..=hi) + radius + lift,
             );
-            if spheres
-                .iter()
-                .all(|(c, rad)| (*c - centre).norm() > rad + radius)
-            {
+            if spheres.iter().all(|(c, rad)| (*c - centre).norm() > rad + radius) {
                 break;
             }
         }

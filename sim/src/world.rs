@@ -64,11 +64,7 @@ pub struct LightSpec {
 
 impl Default for LightSpec {
     fn default() -> Self {
-        LightSpec {
-            direction: [-0.3, -0.5, 1.0],
-            diffuse: 0.75,
-            ambient: 0.25,
-        }
+        LightSpec { direction: [-0.3, -0.5, 1.0], diffuse: 0.75, ambient: 0.25 }
     }
 }
 
@@ -129,11 +125,7 @@ pub struct PhysicsSpec {
 
 impl Default for PhysicsSpec {
     fn default() -> Self {
-        PhysicsSpec {
-            timestep_s: 1.0 / 240.0,
-            settle_limit_s: 8.0,
-            friction: 0.7,
-        }
+        PhysicsSpec { timestep_s: 1.0 / 240.0, settle_limit_s: 8.0, friction: 0.7 }
     }
 }
 
@@ -221,21 +213,14 @@ pub enum WorldError {
     #[error("{file}: {cause}")]
     Io { file: String, cause: std::io::Error },
     #[error("{file}:{line}: field `{field}`: {message}")]
-    Invalid {
-        file: String,
-        line: usize,
-        field: String,
-        message: String,
-    },
+    Invalid { file: String, line: usize, field: String, message: String },
 }
 
 impl WorldFile {
     /// Reads and checks a world file.
     pub fn load(path: &Path) -> Result<WorldFile, WorldError> {
-        let text = std::fs::read_to_string(path).map_err(|cause| WorldError::Io {
-            file: path.display().to_string(),
-            cause,
-        })?;
+        let text = std::fs::read_to_string(path)
+            .map_err(|cause| WorldError::Io { file: path.display().to_string(), cause })?;
         Self::parse(&text, &path.display().to_string())
     }
 
@@ -247,25 +232,14 @@ impl WorldFile {
             field,
             message,
         };
-        let de = toml::Deserializer::parse(text).map_err(|e| {
-            invalid(
-                line_at(text, e.span()),
-                String::new(),
-                e.message().to_string(),
-            )
-        })?;
+        let de = toml::Deserializer::parse(text)
+            .map_err(|e| invalid(line_at(text, e.span()), String::new(), e.message().to_string()))?;
         let world: WorldFile = serde_path_to_error::deserialize(de).map_err(|e| {
             let field = e.path().to_string();
             let inner = e.into_inner();
-            invalid(
-                line_at(text, inner.span()),
-                field,
-                inner.message().to_string(),
-            )
+            invalid(line_at(text, inner.span()), field, inner.message().to_string())
         })?;
-        world
-            .check()
-            .map_err(|(field, message)| invalid(line_of_field(text, &field), field, message))?;
+        world.check().map_err(|(field, message)| invalid(line_of_field(text, &field), field, message))?;
         Ok(world)
     }
 
@@ -301,21 +275,13 @@ impl WorldFile {
                     format!("must be within 1-8192, got {:?}", cam.resolution),
                 ));
             }
-            let to_target: f64 = (0..3)
-                .map(|i| (cam.look_at_m[i] - cam.position_m[i]).powi(2))
-                .sum();
+            let to_target: f64 = (0..3).map(|i| (cam.look_at_m[i] - cam.position_m[i]).powi(2)).sum();
             if to_target < 1e-12 {
-                return Err((
-                    format!("cameras.{side}.look_at_m"),
-                    "must differ from position_m".into(),
-                ));
+                return Err((format!("cameras.{side}.look_at_m"), "must differ from position_m".into()));
             }
         }
         if !(self.render.noise_sigma.is_finite() && self.render.noise_sigma >= 0.0) {
-            return Err((
-                "render.noise_sigma".into(),
-                format!("must be >= 0, got {}", self.render.noise_sigma),
-            ));
+            return Err(("render.noise_sigma".into(), format!("must be >= 0, got {}", self.render.noise_sigma)));
         }
         positive("physics.timestep_s", self.physics.timestep_s)?;
         positive("physics.settle_limit_s", self.physics.settle_limit_s)?;
@@ -325,10 +291,7 @@ impl WorldFile {
             }
             for i in 0..2 {
                 if c.region_m.min[i] >= c.region_m.max[i] {
-                    return Err((
-                        format!("clutter.region_m.max[{i}]"),
-                        "must exceed min".into(),
-                    ));
+                    return Err((format!("clutter.region_m.max[{i}]"), "must exceed min".into()));
                 }
             }
             if !(0.0 < c.drop_height_m[0] && c.drop_height_m[0] <= c.drop_height_m[1]) {
@@ -349,33 +312,19 @@ impl WorldFile {
     }
 
     /// Checks that every model named exists in `library`.
-    pub fn check_models(
-        &self,
-        library: &mesh::Library,
-        text: &str,
-        file: &str,
-    ) -> Result<(), WorldError> {
-        let named = self
-            .objects
+    pub fn check_models(&self, library: &mesh::Library, text: &str, file: &str) -> Result<(), WorldError> {
+        let named = self.objects.iter().enumerate().map(|(i, o)| (format!("objects[{i}].model"), &o.model));
+        let clutter = self
+            .clutter
             .iter()
-            .enumerate()
-            .map(|(i, o)| (format!("objects[{i}].model"), &o.model));
-        let clutter = self.clutter.iter().flat_map(|c| {
-            c.objects
-                .iter()
-                .enumerate()
-                .map(|(i, o)| (format!("clutter.objects[{i}].model"), &o.model))
-        });
+            .flat_map(|c| c.objects.iter().enumerate().map(|(i, o)| (format!("clutter.objects[{i}].model"), &o.model)));
         for (field, model) in named.chain(clutter) {
             if library.get(model).is_none() {
                 let known: Vec<&str> = library.names().collect();
                 return Err(WorldError::Invalid {
                     file: file.to_string(),
                     line: line_of_field(text, &field),
-                    message: format!(
-                        "no model `{model}` in the library (it has: {})",
-                        known.join(", ")
-                    ),
+                    message: format!("no model `{model}` in the library (it has: {})", known.join(", ")),
                     field,
                 });
             }
@@ -394,9 +343,7 @@ impl WorldFile {
 
 /// 1-based line of a byte offset (line 1 when unknown).
 fn line_at(text: &str, span: Option<std::ops::Range<usize>>) -> usize {
-    span.map_or(1, |s| {
-        text[..s.start.min(text.len())].matches('\n').count() + 1
-    })
+    span.map_or(1, |s| text[..s.start.min(text.len())].matches('\n').count() + 1)
 }
 
 /// 1-based line where a field like `bins[1].size_m[0]` is written; falls back to its nearest
@@ -459,12 +406,7 @@ position_m = [0.0, 0.0, 0.015]
 
     fn error_of(text: &str) -> (usize, String, String) {
         match WorldFile::parse(text, "w.toml") {
-            Err(WorldError::Invalid {
-                line,
-                field,
-                message,
-                ..
-            }) => (line, field, message),
+            Err(WorldError::Invalid { line, field, message, .. }) => (line, field, message),
             other => panic!("expected an invalid-world error, got {other:?}"),
         }
     }
@@ -479,10 +421,7 @@ position_m = [0.0, 0.0, 0.015]
 
     #[test]
     fn a_wrong_type_names_its_line_and_field() {
-        let bad = GOOD.replace(
-            "focal_px = 900.0\nposition_m = [0.1",
-            "focal_px = \"wide\"\nposition_m = [0.1",
-        );
+        let bad = GOOD.replace("focal_px = 900.0\nposition_m = [0.1", "focal_px = \"wide\"\nposition_m = [0.1");
         let (line, field, message) = error_of(&bad);
         assert_eq!(line, 12);
         assert_eq!(field, "cameras.right.focal_px");
@@ -515,15 +454,11 @@ position_m = [0.0, 0.0, 0.015]
 
     #[test]
     fn an_out_of_range_value_names_its_line_and_field() {
-        let bad = GOOD.replace(
-            "focal_px = 900.0\nposition_m = [-0.1",
-            "focal_px = -5.0\nposition_m = [-0.1",
-        );
+        let bad = GOOD.replace("focal_px = 900.0\nposition_m = [-0.1", "focal_px = -5.0\nposition_m = [-0.1");
         let (line, field, message) = error_of(&bad);
         assert_eq!((line, field.as_str()), (8, "cameras.left.focal_px"));
         assert!(message.contains("positive"), "{message}");
-        let bad = GOOD.to_string()
-            + "[[bins]]\nname = \"a\"\ncentre_m = [0.3, 0.0]\nsize_m = [0.2, 0.0, 0.05]\n";
+        let bad = GOOD.to_string() + "[[bins]]\nname = \"a\"\ncentre_m = [0.3, 0.0]\nsize_m = [0.2, 0.0, 0.05]\n";
         let (line, field, _) = error_of(&bad);
         assert_eq!((line, field.as_str()), (21, "bins[0].size_m[1]"));
     }
@@ -534,17 +469,9 @@ position_m = [0.0, 0.0, 0.015]
         let w = WorldFile::parse(&bad, "w.toml").unwrap();
         let lib = mesh::Library::load_default().unwrap();
         match w.check_models(&lib, &bad, "w.toml") {
-            Err(WorldError::Invalid {
-                line,
-                field,
-                message,
-                ..
-            }) => {
+            Err(WorldError::Invalid { line, field, message, .. }) => {
                 assert_eq!((line, field.as_str()), (16, "objects[0].model"));
-                assert!(
-                    message.contains("teapot") && message.contains("widget"),
-                    "{message}"
-                );
+                assert!(message.contains("teapot") && message.contains("widget"), "{message}");
             }
             other => panic!("expected an error, got {other:?}"),
         }

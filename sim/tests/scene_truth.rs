@@ -17,10 +17,7 @@ fn widgets() -> Scenario {
 }
 
 fn shade(scn: &Scenario, scene: &Scene) -> RenderScene {
-    RenderScene::new(
-        scene.world_meshes(&scn.library),
-        &Light::from(&scn.world.light),
-    )
+    RenderScene::new(scene.world_meshes(&scn.library), &Light::from(&scn.world.light))
 }
 
 fn v(p: &Point3<f64>) -> Vector {
@@ -33,11 +30,7 @@ fn settled_objects_rest_on_the_table_without_interpenetrating() {
     let table = scn.world.table.size_m;
     for seed in [1, 2, 3] {
         let scene = Scene::settle(&scn, seed);
-        assert!(
-            scene.settle.at_rest,
-            "seed {seed}: not at rest: {:?}",
-            scene.settle
-        );
+        assert!(scene.settle.at_rest, "seed {seed}: not at rest: {:?}", scene.settle);
         let shapes: Vec<_> = scene
             .objects
             .iter()
@@ -47,39 +40,17 @@ fn settled_objects_rest_on_the_table_without_interpenetrating() {
             })
             .collect();
         for o in &scene.objects {
-            let mesh = scn.library.models[&o.model]
-                .mesh
-                .transformed(&o.world_from_model);
+            let mesh = scn.library.models[&o.model].mesh.transformed(&o.world_from_model);
             let (lo, hi) = mesh.bounds().unwrap();
-            assert!(
-                lo.z >= -1e-3,
-                "seed {seed}: {} sinks {:.2} mm into the table",
-                o.model,
-                -lo.z * 1e3
-            );
-            assert!(
-                lo.z <= 0.12,
-                "seed {seed}: {} floats at {:.3} m",
-                o.model,
-                lo.z
-            );
-            assert!(
-                lo.x > -table[0] / 2.0 && hi.x < table[0] / 2.0,
-                "seed {seed}: {} is off the table",
-                o.model
-            );
-            assert!(
-                lo.y > -table[1] / 2.0 && hi.y < table[1] / 2.0,
-                "seed {seed}: {} is off the table",
-                o.model
-            );
+            assert!(lo.z >= -1e-3, "seed {seed}: {} sinks {:.2} mm into the table", o.model, -lo.z * 1e3);
+            assert!(lo.z <= 0.12, "seed {seed}: {} floats at {:.3} m", o.model, lo.z);
+            assert!(lo.x > -table[0] / 2.0 && hi.x < table[0] / 2.0, "seed {seed}: {} is off the table", o.model);
+            assert!(lo.y > -table[1] / 2.0 && hi.y < table[1] / 2.0, "seed {seed}: {} is off the table", o.model);
         }
         for i in 0..shapes.len() {
             for j in i + 1..shapes.len() {
                 let ((a, pa), (b, pb)) = (&shapes[i], &shapes[j]);
-                if let Some(c) =
-                    parry3d::query::contact(pa, a.as_ref(), pb, b.as_ref(), 0.0).unwrap()
-                {
+                if let Some(c) = parry3d::query::contact(pa, a.as_ref(), pb, b.as_ref(), 0.0).unwrap() {
                     assert!(
                         c.dist >= -1e-3,
                         "seed {seed}: {} and {} interpenetrate by {:.2} mm",
@@ -99,29 +70,18 @@ fn the_same_seed_gives_identical_images_and_another_seed_does_not() {
     let calib = sim::rig::calibration(&scn.world.cameras);
     let pair = |seed| {
         let scene = Scene::settle(&scn, seed);
-        render_stereo(
-            &shade(&scn, &scene),
-            &calib,
-            scn.world.render.noise_sigma,
-            seed,
-        )
+        render_stereo(&shade(&scn, &scene), &calib, scn.world.render.noise_sigma, seed)
     };
     let (a, b, c) = (pair(5), pair(5), pair(6));
     assert!(a == b, "seed 5 rendered twice differs");
-    assert!(
-        a.0.image != c.0.image,
-        "seeds 5 and 6 gave the same left image"
-    );
+    assert!(a.0.image != c.0.image, "seeds 5 and 6 gave the same left image");
 }
 
 /// Depth along the optical axis of the nearest surface on the ray through pixel `(u, v)`.
 fn ray_cast_depth(meshes: &[ParryMesh], cam: &PinholeCamera, u: f64, v_: f64) -> Option<f64> {
     let (origin, dir) = cam.ray_world(u, v_);
     let ray = Ray::new(v(&origin), v(&dir.into()));
-    let t = meshes
-        .iter()
-        .filter_map(|m| m.cast_ray(&Pose::IDENTITY, &ray, 10.0, true))
-        .fold(f32::MAX, f32::min);
+    let t = meshes.iter().filter_map(|m| m.cast_ray(&Pose::IDENTITY, &ray, 10.0, true)).fold(f32::MAX, f32::min);
     let axis = cam.world_from_cam.rotation * nalgebra::Vector3::z();
     (t < f32::MAX).then(|| t as f64 * dir.dot(&axis))
 }
@@ -132,9 +92,7 @@ fn depth_maps_agree_with_parry_ray_casts() {
     let scene = Scene::settle(&scn, 1);
     let meshes: Vec<ParryMesh> = scene
         .world_meshes(&scn.library)
-        .map(|(_, m)| {
-            ParryMesh::new(m.vertices.iter().map(v).collect(), m.triangles.clone()).unwrap()
-        })
+        .map(|(_, m)| ParryMesh::new(m.vertices.iter().map(v).collect(), m.triangles.clone()).unwrap())
         .collect();
     let calib = sim::rig::calibration(&scn.world.cameras);
     let rs = shade(&scn, &scene);
@@ -143,10 +101,7 @@ fn depth_maps_agree_with_parry_ray_casts() {
     for cam in [&calib.left, &calib.right] {
         let frame = render(&rs, cam, 0.0, 0);
         for _ in 0..1500 {
-            let (x, y) = (
-                rng.random_range(0..frame.width),
-                rng.random_range(0..frame.height),
-            );
+            let (x, y) = (rng.random_range(0..frame.width), rng.random_range(0..frame.height));
             let rendered = frame.depth[y * frame.width + x] as f64;
             let cast = ray_cast_depth(&meshes, cam, x as f64, y as f64).unwrap_or(0.0);
             assert!(
@@ -157,10 +112,7 @@ fn depth_maps_agree_with_parry_ray_casts() {
             worst = worst.max((rendered - cast).abs());
         }
     }
-    eprintln!(
-        "depth vs ray cast over 3000 pixels: worst {:.4} mm",
-        worst * 1e3
-    );
+    eprintln!("depth vs ray cast over 3000 pixels: worst {:.4} mm", worst * 1e3);
     assert!(on_objects > 50, "only {on_objects} samples fell on objects");
 }
 
@@ -188,21 +140,13 @@ fn nearest<T: Copy>(f: &Frame, data: &[T], p: Point2<f64>) -> Option<T> {
 /// Where the intensity step across the projected edge at `q` (unit normal `n`) actually is,
 /// as a signed offset along `n`; `None` where the image has no clean step there.
 fn measured_step(f: &Frame, q: Point2<f64>, n: Vector2<f64>) -> Option<f64> {
-    let profile: Vec<(f64, f64)> = (-16..=16)
-        .map(|k| k as f64 / 4.0)
-        .map(|s| Some((s, bilinear(f, q + n * s)?)))
-        .collect::<Option<_>>()?;
+    let profile: Vec<(f64, f64)> =
+        (-16..=16).map(|k| k as f64 / 4.0).map(|s| Some((s, bilinear(f, q + n * s)?))).collect::<Option<_>>()?;
     let side = |range: std::ops::RangeInclusive<f64>| -> Vec<f64> {
-        profile
-            .iter()
-            .filter(|(s, _)| range.contains(s))
-            .map(|(_, i)| *i)
-            .collect()
+        profile.iter().filter(|(s, _)| range.contains(s)).map(|(_, i)| *i).collect()
     };
     let (lo, hi) = (side(-4.0..=-2.5), side(2.5..=4.0));
-    let spread = |xs: &[f64]| {
-        xs.iter().cloned().fold(f64::MIN, f64::max) - xs.iter().cloned().fold(f64::MAX, f64::min)
-    };
+    let spread = |xs: &[f64]| xs.iter().cloned().fold(f64::MIN, f64::max) - xs.iter().cloned().fold(f64::MAX, f64::min);
     let mean = |xs: &[f64]| xs.iter().sum::<f64>() / xs.len() as f64;
     let (l, r) = (mean(&lo), mean(&hi));
     if spread(&lo) > 3.0 || spread(&hi) > 3.0 || (l - r).abs() < 20.0 {
@@ -221,17 +165,14 @@ fn measured_step(f: &Frame, q: Point2<f64>, n: Vector2<f64>) -> Option<f64> {
 /// The projected edge point is a visible boundary of its own object: no other object near it,
 /// and the depth just beside it on one side is its own.
 fn visible(f: &Frame, id: u16, q: Point2<f64>, n: Vector2<f64>, depth: f64) -> bool {
-    let ids: Option<Vec<u16>> = (-4..=4)
-        .map(|s| nearest(f, &f.ids, q + n * s as f64))
-        .collect();
+    let ids: Option<Vec<u16>> = (-4..=4).map(|s| nearest(f, &f.ids, q + n * s as f64)).collect();
     let Some(ids) = ids else { return false };
     if ids.iter().any(|&i| i != 0 && i != id) {
         return false;
     }
     [-1.5, 1.5].iter().any(|&s| {
         let p = q + n * s;
-        nearest(f, &f.ids, p) == Some(id)
-            && nearest(f, &f.depth, p).is_some_and(|d| (d as f64 - depth).abs() < 3e-3)
+        nearest(f, &f.ids, p) == Some(id) && nearest(f, &f.depth, p).is_some_and(|d| (d as f64 - depth).abs() < 3e-3)
     })
 }
 
@@ -245,13 +186,7 @@ struct EdgeErrors {
 type LineAt = (Point3<f64>, Point2<f64>, Vector2<f64>);
 
 /// Feature edges of every object projected through `cam`, against the steps found in `frame`.
-fn edge_errors(
-    scn: &Scenario,
-    scene: &Scene,
-    cam: &PinholeCamera,
-    frame: &Frame,
-    out: &mut EdgeErrors,
-) {
+fn edge_errors(scn: &Scenario, scene: &Scene, cam: &PinholeCamera, frame: &Frame, out: &mut EdgeErrors) {
     for o in &scene.objects {
         let model = &scn.library.models[&o.model];
         let mut lines_at: Vec<LineAt> = Vec::new();
@@ -259,10 +194,7 @@ fn edge_errors(
             .wireframe
             .iter()
             .map(|s| {
-                Some((
-                    cam.project_world(&(o.world_from_model * s.a))?,
-                    cam.project_world(&(o.world_from_model * s.b))?,
-                ))
+                Some((cam.project_world(&(o.world_from_model * s.a))?, cam.project_world(&(o.world_from_model * s.b))?))
             })
             .collect();
         for (si, seg) in model.wireframe.iter().enumerate() {
@@ -286,9 +218,10 @@ fn edge_errors(
                 let p3 = a + (b - a) * t;
                 let q = cam.project_world(&p3).unwrap();
                 // The profile spans 4 px each side: another edge that close would blend in.
-                let crowded = projected.iter().enumerate().any(|(sj, other)| {
-                    sj != si && other.is_some_and(|(c, d)| distance_to_segment(q, c, d) < 4.5)
-                });
+                let crowded = projected
+                    .iter()
+                    .enumerate()
+                    .any(|(sj, other)| sj != si && other.is_some_and(|(c, d)| distance_to_segment(q, c, d) < 4.5));
                 if crowded {
                     continue;
                 }
@@ -316,8 +249,7 @@ fn edge_errors(
                 }
                 let t = (c2 - c1).perp(d2) / d1.perp(d2);
                 let crossing = c1 + d1 * t;
-                out.vertices
-                    .push((crossing - cam.project_world(v1).unwrap()).norm());
+                out.vertices.push((crossing - cam.project_world(v1).unwrap()).norm());
             }
         }
     }
@@ -363,15 +295,9 @@ fn projected_feature_edges_land_on_the_rendered_intensity_edges() {
     let (n, median, worst) = stats(&mut errors.points);
     eprintln!("edge points: {n}, median {median:.3} px, worst {worst:.3} px");
     assert!(n >= 300, "only {n} edge points could be measured");
-    assert!(
-        worst <= 0.5,
-        "an edge point lies {worst:.3} px from its intensity edge"
-    );
+    assert!(worst <= 0.5, "an edge point lies {worst:.3} px from its intensity edge");
     let (n, median, worst) = stats(&mut errors.vertices);
     eprintln!("vertices: {n}, median {median:.3} px, worst {worst:.3} px");
     assert!(n >= 10, "only {n} vertices could be measured");
-    assert!(
-        worst <= 0.5,
-        "a vertex lies {worst:.3} px from where its intensity edges meet"
-    );
+    assert!(worst <= 0.5, "a vertex lies {worst:.3} px from where its intensity edges meet");
 }

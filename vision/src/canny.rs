@@ -18,11 +18,7 @@ pub struct CannyParams {
 
 impl Default for CannyParams {
     fn default() -> Self {
-        CannyParams {
-            sigma: 1.0,
-            low: 2.0,
-            high: 5.0,
-        }
+        CannyParams { sigma: 1.0, low: 2.0, high: 5.0 }
     }
 }
 
@@ -64,6 +60,26 @@ impl EdgeMap {
         (p % self.width, p / self.width)
     }
 
+    /// An empty map for a `width` x `height` image.
+    pub fn new(width: usize, height: usize) -> EdgeMap {
+        let mut map = EdgeMap::default();
+        map.reset(width, height);
+        map
+    }
+
+    /// The edgels found on rows `rows` only (the same image size and pixel numbering).
+    pub fn retain_rows(&self, rows: &std::ops::Range<usize>) -> EdgeMap {
+        let mut out = EdgeMap::default();
+        out.reset(self.width, self.height);
+        for (i, e) in self.edgels.iter().enumerate() {
+            let p = self.pixel[i] as usize;
+            if rows.contains(&(p / self.width)) {
+                out.push(p, *e);
+            }
+        }
+        out
+    }
+
     /// Empties the map for a `width` x `height` image, keeping its allocations.
     fn reset(&mut self, width: usize, height: usize) {
         (self.width, self.height) = (width, height);
@@ -73,7 +89,8 @@ impl EdgeMap {
         self.at_pixel.resize(width * height, NO_EDGEL);
     }
 
-    fn push(&mut self, pixel: usize, e: Edgel) {
+    /// Adds an edgel found at row-major pixel `pixel`.
+    pub fn push(&mut self, pixel: usize, e: Edgel) {
         self.at_pixel[pixel] = self.edgels.len() as u32;
         self.edgels.push(e);
         self.pixel.push(pixel as u32);
@@ -83,9 +100,7 @@ impl EdgeMap {
 /// The normalised 1D Gaussian, radius `ceil(3 sigma)`.
 pub fn gaussian_kernel(sigma: f32) -> Vec<f32> {
     let r = (3.0 * sigma).ceil().max(1.0) as i32;
-    let k: Vec<f32> = (-r..=r)
-        .map(|i| (-(i * i) as f32 / (2.0 * sigma * sigma)).exp())
-        .collect();
+    let k: Vec<f32> = (-r..=r).map(|i| (-(i * i) as f32 / (2.0 * sigma * sigma)).exp()).collect();
     let sum: f32 = k.iter().sum();
     k.into_iter().map(|v| v / sum).collect()
 }
@@ -165,11 +180,7 @@ impl CannyWorkspace {
         }
         let s = &self.smoothed;
         for y in 1..h.saturating_sub(1) {
-            let (up, mid, down) = (
-                &s[(y - 1) * w..y * w],
-                &s[y * w..(y + 1) * w],
-                &s[(y + 1) * w..(y + 2) * w],
-            );
+            let (up, mid, down) = (&s[(y - 1) * w..y * w], &s[y * w..(y + 1) * w], &s[(y + 1) * w..(y + 2) * w]);
             let out = &mut self.mag[y * w + 1..(y + 1) * w - 1];
             for (x, m) in out.iter_mut().enumerate() {
                 let (dx, dy) = (0.5 * (mid[x + 2] - mid[x]), 0.5 * (down[x + 1] - up[x + 1]));
@@ -210,10 +221,7 @@ impl CannyWorkspace {
                 let (gx, gy) = self.gradient_at(i, w);
                 let (sx, sy) = nearest_pixel_line(gx, gy);
                 let step = sy * w as isize + sx;
-                let (behind, ahead) = (
-                    mag[(i as isize - step) as usize],
-                    mag[(i as isize + step) as usize],
-                );
+                let (behind, ahead) = (mag[(i as isize - step) as usize], mag[(i as isize + step) as usize]);
                 if !(m0 >= ahead && m0 > behind) {
                     continue;
                 }
@@ -235,11 +243,9 @@ impl CannyWorkspace {
     fn hysteresis(&mut self, map: &mut EdgeMap, high: f32) {
         let (w, h) = (map.width, map.height);
         self.keep.clear();
-        self.keep
-            .extend(map.edgels.iter().map(|e| e.contrast >= high));
+        self.keep.extend(map.edgels.iter().map(|e| e.contrast >= high));
         self.stack.clear();
-        self.stack
-            .extend((0..map.edgels.len() as u32).filter(|&i| self.keep[i as usize]));
+        self.stack.extend((0..map.edgels.len() as u32).filter(|&i| self.keep[i as usize]));
         while let Some(i) = self.stack.pop() {
             let (x, y) = map.pixel_of(i);
             for (nx, ny) in neighbours(x, y, w, h) {
@@ -290,17 +296,9 @@ pub fn smooth(img: &GreyImage, sigma: f32) -> Vec<f32> {
 /// of a blurred step's gradient) and so avoids the bias of a plain parabola at wide spacings.
 fn peak_offset(behind: f32, middle: f32, ahead: f32) -> f32 {
     let floor = 1e-3; // magnitudes can be zero far from edges; keep the logarithms finite
-    let (a, m, b) = (
-        behind.max(floor).ln(),
-        middle.max(floor).ln(),
-        ahead.max(floor).ln(),
-    );
+    let (a, m, b) = (behind.max(floor).ln(), middle.max(floor).ln(), ahead.max(floor).ln());
     let curvature = a - 2.0 * m + b;
-    if curvature < 0.0 {
-        (0.5 * (a - b) / curvature).clamp(-0.5, 0.5)
-    } else {
-        0.0
-    }
+    if curvature < 0.0 { (0.5 * (a - b) / curvature).clamp(-0.5, 0.5) } else { 0.0 }
 }
 
 /// The pixel step `(dx, dy)` of the row, column or diagonal nearest the direction `(gx, gy)`.
@@ -333,13 +331,7 @@ mod tests {
 
     /// An image of two grey levels split by the line `n . (p - c) = 0`, each pixel the exact
     /// mean over its square (by 64 x 64 supersampling), so the edge sits at a known sub-pixel place.
-    fn step_image(
-        size: usize,
-        angle: f32,
-        through: (f32, f32),
-        dark: f32,
-        bright: f32,
-    ) -> GreyImage {
+    fn step_image(size: usize, angle: f32, through: (f32, f32), dark: f32, bright: f32) -> GreyImage {
         let (nx, ny) = (angle.cos(), angle.sin());
         let pixels = (0..size * size)
             .map(|i| {
@@ -347,10 +339,7 @@ mod tests {
                 let mut bright_fraction = 0.0;
                 for sy in 0..64 {
                     for sx in 0..64 {
-                        let (x, y) = (
-                            px - 0.5 + (sx as f32 + 0.5) / 64.0,
-                            py - 0.5 + (sy as f32 + 0.5) / 64.0,
-                        );
+                        let (x, y) = (px - 0.5 + (sx as f32 + 0.5) / 64.0, py - 0.5 + (sy as f32 + 0.5) / 64.0);
                         if nx * (x - through.0) + ny * (y - through.1) > 0.0 {
                             bright_fraction += 1.0 / 4096.0;
                         }
@@ -367,15 +356,10 @@ mod tests {
         let inner: Vec<f64> = map
             .edgels
             .iter()
-            .filter(|e| {
-                e.x > 6.0 && e.y > 6.0 && e.x < size as f32 - 7.0 && e.y < size as f32 - 7.0
-            })
+            .filter(|e| e.x > 6.0 && e.y > 6.0 && e.x < size as f32 - 7.0 && e.y < size as f32 - 7.0)
             .map(|e| (nx * (e.x - through.0) + ny * (e.y - through.1)) as f64)
             .collect();
-        (
-            (inner.iter().map(|d| d * d).sum::<f64>() / inner.len().max(1) as f64).sqrt(),
-            inner.len(),
-        )
+        ((inner.iter().map(|d| d * d).sum::<f64>() / inner.len().max(1) as f64).sqrt(), inner.len())
     }
 
     #[test]
@@ -388,26 +372,16 @@ mod tests {
 
     #[test]
     fn straight_edges_are_located_to_a_twentieth_of_a_pixel() {
-        for (angle, offset) in [
-            (0.0f32, 0.0f32),
-            (0.0, 0.3),
-            (0.0, 0.5),
-            (0.4, 0.17),
-            (1.1, 0.71),
-            (0.785, 0.2),
-            (2.5, 0.42),
-            (2.5, 0.1),
-        ] {
+        for (angle, offset) in
+            [(0.0f32, 0.0f32), (0.0, 0.3), (0.0, 0.5), (0.4, 0.17), (1.1, 0.71), (0.785, 0.2), (2.5, 0.42), (2.5, 0.1)]
+        {
             let through = (16.0 + offset, 16.0 + offset / 2.0);
             let img = step_image(32, angle, through, 60.0, 180.0);
             let map = canny(&img, &CannyParams::default());
             let (rms, n) = rms_distance(&map, angle, through, 32);
             assert!(n >= 15, "angle {angle}: only {n} edgels");
             eprintln!("angle {angle}, offset {offset}: rms {rms:.4} px over {n}");
-            assert!(
-                rms < 0.05,
-                "angle {angle}, offset {offset}: rms {rms:.3} px"
-            );
+            assert!(rms < 0.05, "angle {angle}, offset {offset}: rms {rms:.3} px");
         }
     }
 
@@ -415,16 +389,8 @@ mod tests {
     fn orientation_points_from_dark_to_bright_and_contrast_scales() {
         let img = step_image(32, 0.4, (16.0, 16.0), 60.0, 180.0);
         let map = canny(&img, &CannyParams::default());
-        let e = map
-            .edgels
-            .iter()
-            .find(|e| (e.x - 16.0).abs() < 3.0 && (e.y - 16.0).abs() < 3.0)
-            .unwrap();
-        assert!(
-            (e.orientation - 0.4).abs() < 0.05,
-            "orientation {}",
-            e.orientation
-        );
+        let e = map.edgels.iter().find(|e| (e.x - 16.0).abs() < 3.0 && (e.y - 16.0).abs() < 3.0).unwrap();
+        assert!((e.orientation - 0.4).abs() < 0.05, "orientation {}", e.orientation);
         // A 120 grey-level step, blurred by the pixel (variance 1/12) and the Gaussian (1), seen
         // by a central difference: 120 (Phi(1/s) - Phi(-1/s)) / 2 = 60 erf(1 / (s sqrt 2)), s^2 = 13/12,
         // which is 39.8.

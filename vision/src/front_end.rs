@@ -43,10 +43,7 @@ fn canny_reusing(img: &GreyImage, params: &CannyParams) -> EdgeMap {
 
 /// The disparity range that depths from `near` to `far` metres (along the rectified axis) give.
 pub fn disparity_range(rect: &Rectification, near: f64, far: f64) -> (f32, f32) {
-    (
-        (rect.f * rect.baseline / far) as f32,
-        (rect.f * rect.baseline / near) as f32,
-    )
+    ((rect.f * rect.baseline / far) as f32, (rect.f * rect.baseline / near) as f32)
 }
 
 /// What the front end knows of the cameras.
@@ -56,10 +53,7 @@ pub enum Geometry {
     /// [`WORKSPACE_DEPTH_M`].
     Calibrated(StereoCalibration),
     /// Images already rectified (rows are epipolars), with the disparity range to search.
-    Rectified {
-        disparity_min: f32,
-        disparity_max: f32,
-    },
+    Rectified { disparity_min: f32, disparity_max: f32 },
 }
 
 /// Depths (metres, along the rectified axis) the calibrated front end searches: MARVIN's
@@ -67,37 +61,19 @@ pub enum Geometry {
 pub const WORKSPACE_DEPTH_M: (f64, f64) = (0.6, 1.6);
 
 /// The front end on a calibrated pair.
-pub fn run(
-    left: &GreyImage,
-    right: &GreyImage,
-    calib: &StereoCalibration,
-    canny_params: &CannyParams,
-) -> FrontEnd {
-    run_with(
-        left,
-        right,
-        &Geometry::Calibrated(calib.clone()),
-        canny_params,
-    )
+pub fn run(left: &GreyImage, right: &GreyImage, calib: &StereoCalibration, canny_params: &CannyParams) -> FrontEnd {
+    run_with(left, right, &Geometry::Calibrated(calib.clone()), canny_params)
 }
 
 /// The front end: Canny on both images, strings of the left, rectification, PMF.
-pub fn run_with(
-    left: &GreyImage,
-    right: &GreyImage,
-    geometry: &Geometry,
-    canny_params: &CannyParams,
-) -> FrontEnd {
+pub fn run_with(left: &GreyImage, right: &GreyImage, geometry: &Geometry, canny_params: &CannyParams) -> FrontEnd {
     let mut timings_ms = Vec::new();
     let mut clock = Instant::now();
     let mut lap = |name: &'static str, timings: &mut Vec<(&'static str, f64)>| {
         timings.push((name, clock.elapsed().as_secs_f64() * 1e3));
         clock = Instant::now();
     };
-    let (l, r) = rayon::join(
-        || canny_reusing(left, canny_params),
-        || canny_reusing(right, canny_params),
-    );
+    let (l, r) = rayon::join(|| canny_reusing(left, canny_params), || canny_reusing(right, canny_params));
     lap("canny", &mut timings_ms);
     let left_strings = link_strings(&l, MIN_STRING);
     lap("strings", &mut timings_ms);
@@ -105,32 +81,19 @@ pub fn run_with(
         Geometry::Calibrated(calib) => Some(Rectification::new(calib)),
         Geometry::Rectified { .. } => None,
     };
-    let (left_rectified, right_rectified, (disparity_min, disparity_max)) = match (&rect, geometry)
-    {
+    let (left_rectified, right_rectified, (disparity_min, disparity_max)) = match (&rect, geometry) {
         (Some(rect), _) => {
             let range = disparity_range(rect, WORKSPACE_DEPTH_M.0, WORKSPACE_DEPTH_M.1);
             let left = rect.rectify_edgels(Side::Left, &l.edgels);
             (left, rect.rectify_edgels(Side::Right, &r.edgels), range)
         }
-        (
-            None,
-            Geometry::Rectified {
-                disparity_min,
-                disparity_max,
-            },
-        ) => (
-            l.edgels.clone(),
-            r.edgels.clone(),
-            (*disparity_min, *disparity_max),
-        ),
+        (None, Geometry::Rectified { disparity_min, disparity_max }) => {
+            (l.edgels.clone(), r.edgels.clone(), (*disparity_min, *disparity_max))
+        }
         (None, Geometry::Calibrated(_)) => unreachable!("a calibrated pair has a rectification"),
     };
     lap("rectify", &mut timings_ms);
-    let params = PmfParams {
-        disparity_min,
-        disparity_max,
-        ..PmfParams::default()
-    };
+    let params = PmfParams { disparity_min, disparity_max, ..PmfParams::default() };
     let matches = pmf(&left_rectified, &right_rectified, &left_strings, &params);
     lap("pmf", &mut timings_ms);
     let lines2d = fit_lines(&left_rectified, &left_strings, &Lines2dParams::default());
@@ -179,5 +142,23 @@ impl FrontEnd {
             None => p,
         };
         [back(line.start), back(line.end)]
+    }
+}
+
+impl FrontEnd {
+    /// Nothing found yet (what the Joiner fills).
+    pub fn empty(rect: Option<Rectification>) -> FrontEnd {
+        FrontEnd {
+            left: EdgeMap::default(),
+            right: EdgeMap::default(),
+            left_strings: Vec::new(),
+            left_rectified: Vec::new(),
+            right_rectified: Vec::new(),
+            matches: Vec::new(),
+            lines2d: Vec::new(),
+            lines3d: Vec::new(),
+            rect,
+            timings_ms: Vec::new(),
+        }
     }
 }

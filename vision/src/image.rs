@@ -12,11 +12,7 @@ pub struct GreyImage {
 impl GreyImage {
     /// Wraps row-major pixels; `None` when their count is not `width * height`.
     pub fn new(width: usize, height: usize, pixels: Vec<u8>) -> Option<GreyImage> {
-        (pixels.len() == width * height).then_some(GreyImage {
-            width,
-            height,
-            pixels,
-        })
+        (pixels.len() == width * height).then_some(GreyImage { width, height, pixels })
     }
 
     pub fn at(&self, x: usize, y: usize) -> u8 {

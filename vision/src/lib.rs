@@ -9,9 +9,9 @@
 //! - [`lines2d`]: strings cut into straight lines by recursive fit and segment.
 //! - [`lines3d`]: disparity fitted along each 2D line, its ends triangulated into 3D segments.
 //! - [`front_end`]: the stages above run in order on one stereo pair.
+//! - [`slices`]: the same cut into 8 horizontal slice pairs run in parallel, and the Joiner.
 //!
-//! Still to come: slices and the Joiner (the front end's spatial parallelism), the runtime of
-//! communicating processes, and the model matcher.
+//! Still to come: the runtime of communicating processes, and the model matcher.
 
 pub mod canny;
 pub mod front_end;
@@ -20,6 +20,7 @@ pub mod lines2d;
 pub mod lines3d;
 pub mod pmf;
 pub mod rectify;
+pub mod slices;
 pub mod strings;
 
 pub use canny::{CannyParams, EdgeMap, Edgel, canny};

@@ -19,10 +19,7 @@ pub struct Lines2dParams {
 
 impl Default for Lines2dParams {
     fn default() -> Self {
-        Lines2dParams {
-            tolerance: 0.8,
-            min_edgels: 6,
-        }
+        Lines2dParams { tolerance: 0.8, min_edgels: 6 }
     }
 }
 
@@ -48,19 +45,14 @@ impl Line2 {
     /// Unit direction from `start` to `end`.
     pub fn direction(&self) -> [f32; 2] {
         let l = self.length().max(1e-9);
-        [
-            (self.end[0] - self.start[0]) / l,
-            (self.end[1] - self.start[1]) / l,
-        ]
+        [(self.end[0] - self.start[0]) / l, (self.end[1] - self.start[1]) / l]
     }
 }
 
 /// Orthogonal regression: centroid and unit direction of the best-fitting line.
 pub fn fit_line(pts: &[[f32; 2]]) -> ([f32; 2], [f32; 2]) {
     let n = pts.len() as f64;
-    let (mx, my) = pts
-        .iter()
-        .fold((0.0, 0.0), |(a, b), p| (a + p[0] as f64, b + p[1] as f64));
+    let (mx, my) = pts.iter().fold((0.0, 0.0), |(a, b), p| (a + p[0] as f64, b + p[1] as f64));
     let (mx, my) = (mx / n, my / n);
     let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
     for p in pts {
@@ -70,10 +62,7 @@ pub fn fit_line(pts: &[[f32; 2]]) -> ([f32; 2], [f32; 2]) {
         syy += dy * dy;
     }
     let angle = 0.5 * (2.0 * sxy).atan2(sxx - syy);
-    (
-        [mx as f32, my as f32],
-        [angle.cos() as f32, angle.sin() as f32],
-    )
+    ([mx as f32, my as f32], [angle.cos() as f32, angle.sin() as f32])
 }
 
 fn distance_to_line(p: [f32; 2], centre: [f32; 2], dir: [f32; 2]) -> f32 {
@@ -84,11 +73,7 @@ fn distance_to_line(p: [f32; 2], centre: [f32; 2], dir: [f32; 2]) -> f32 {
 pub fn fit_lines(edgels: &[Edgel], strings: &[EdgeString], p: &Lines2dParams) -> Vec<Line2> {
     let mut out = Vec::new();
     for (si, s) in strings.iter().enumerate() {
-        let pts: Vec<[f32; 2]> = s
-            .edgels
-            .iter()
-            .map(|&i| [edgels[i as usize].x, edgels[i as usize].y])
-            .collect();
+        let pts: Vec<[f32; 2]> = s.edgels.iter().map(|&i| [edgels[i as usize].x, edgels[i as usize].y]).collect();
         let mut pieces = Vec::new();
         split(&pts, 0, pts.len() - 1, p.tolerance, &mut pieces);
         for (a, b) in pieces {
@@ -127,22 +112,13 @@ fn split(pts: &[[f32; 2]], a: usize, b: usize, tol: f32, out: &mut Vec<(usize, u
 }
 
 /// Fits `pts[a..=b]`, trimming end edgels off the fit, and makes a line if enough remain.
-fn fit_piece(
-    pts: &[[f32; 2]],
-    mut a: usize,
-    mut b: usize,
-    string: u32,
-    p: &Lines2dParams,
-) -> Option<Line2> {
+fn fit_piece(pts: &[[f32; 2]], mut a: usize, mut b: usize, string: u32, p: &Lines2dParams) -> Option<Line2> {
     loop {
         if b + 1 < a + p.min_edgels {
             return None;
         }
         let (c, d) = fit_line(&pts[a..=b]);
-        let (da, db) = (
-            distance_to_line(pts[a], c, d),
-            distance_to_line(pts[b], c, d),
-        );
+        let (da, db) = (distance_to_line(pts[a], c, d), distance_to_line(pts[b], c, d));
         if da > p.tolerance / 2.0 && da >= db {
             a += 1;
             continue;
@@ -155,12 +131,8 @@ fn fit_piece(
             let t = (q[0] - c[0]) * d[0] + (q[1] - c[1]) * d[1];
             [c[0] + t * d[0], c[1] + t * d[1]]
         };
-        let rms = (pts[a..=b]
-            .iter()
-            .map(|&q| distance_to_line(q, c, d).powi(2))
-            .sum::<f32>()
-            / (b - a + 1) as f32)
-            .sqrt();
+        let rms =
+            (pts[a..=b].iter().map(|&q| distance_to_line(q, c, d).powi(2)).sum::<f32>() / (b - a + 1) as f32).sqrt();
         return Some(Line2 {
             start: project(pts[a]),
             end: project(pts[b]),
@@ -177,24 +149,15 @@ mod tests {
     use super::*;
 
     fn edgel(x: f32, y: f32) -> Edgel {
-        Edgel {
-            x,
-            y,
-            orientation: 0.0,
-            contrast: 10.0,
-        }
+        Edgel { x, y, orientation: 0.0, contrast: 10.0 }
     }
 
     #[test]
     fn an_l_shaped_string_gives_two_lines_meeting_at_the_corner() {
         // 30 edgels along x, then 20 up along y, with a little wobble.
-        let mut e: Vec<Edgel> = (0..30)
-            .map(|k| edgel(10.0 + k as f32, 50.0 + 0.2 * ((k % 3) as f32 - 1.0)))
-            .collect();
+        let mut e: Vec<Edgel> = (0..30).map(|k| edgel(10.0 + k as f32, 50.0 + 0.2 * ((k % 3) as f32 - 1.0))).collect();
         e.extend((1..=20).map(|k| edgel(39.0, 50.0 - k as f32)));
-        let strings = vec![EdgeString {
-            edgels: (0..e.len() as u32).collect(),
-        }];
+        let strings = vec![EdgeString { edgels: (0..e.len() as u32).collect() }];
         let lines = fit_lines(&e, &strings, &Lines2dParams::default());
         assert_eq!(lines.len(), 2, "{lines:?}");
         let (h, v) = (&lines[0], &lines[1]);
@@ -207,17 +170,13 @@ mod tests {
     #[test]
     fn short_strings_make_no_lines() {
         let e: Vec<Edgel> = (0..5).map(|k| edgel(k as f32, 0.0)).collect();
-        let strings = vec![EdgeString {
-            edgels: (0..5).collect(),
-        }];
+        let strings = vec![EdgeString { edgels: (0..5).collect() }];
         assert!(fit_lines(&e, &strings, &Lines2dParams::default()).is_empty());
     }
 
     #[test]
     fn orthogonal_regression_recovers_a_steep_line() {
-        let pts: Vec<[f32; 2]> = (0..50)
-            .map(|k| [100.0 + 0.05 * k as f32, 10.0 + k as f32])
-            .collect();
+        let pts: Vec<[f32; 2]> = (0..50).map(|k| [100.0 + 0.05 * k as f32, 10.0 + k as f32]).collect();
         let (_, d) = fit_line(&pts);
         let expected = 0.05f32.atan2(1.0);
         let got = d[0].atan2(d[1]).abs();

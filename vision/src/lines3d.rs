@@ -26,13 +26,7 @@ pub struct Lines3dParams {
 
 impl Default for Lines3dParams {
     fn default() -> Self {
-        Lines3dParams {
-            min_matches: 5,
-            min_span: 0.3,
-            min_angle_to_raster: 0.25,
-            max_residual: 1.0,
-            max_slope: 1.5,
-        }
+        Lines3dParams { min_matches: 5, min_span: 0.3, min_angle_to_raster: 0.25, max_residual: 1.0, max_slope: 1.5 }
     }
 }
 
@@ -68,25 +62,15 @@ impl Line3 {
 /// Least-squares `d = alpha + beta s` with the residual variance; `None` if degenerate.
 fn linear_fit(points: &[(f64, f64)]) -> Option<(f64, f64, f64, f64, f64)> {
     let n = points.len() as f64;
-    let (ms, md) = points
-        .iter()
-        .fold((0.0, 0.0), |(a, b), &(s, d)| (a + s, b + d));
+    let (ms, md) = points.iter().fold((0.0, 0.0), |(a, b), &(s, d)| (a + s, b + d));
     let (ms, md) = (ms / n, md / n);
     let sss: f64 = points.iter().map(|&(s, _)| (s - ms).powi(2)).sum();
     if sss < 1e-9 || points.len() < 3 {
         return None;
     }
-    let beta = points
-        .iter()
-        .map(|&(s, d)| (s - ms) * (d - md))
-        .sum::<f64>()
-        / sss;
+    let beta = points.iter().map(|&(s, d)| (s - ms) * (d - md)).sum::<f64>() / sss;
     let alpha = md - beta * ms;
-    let var = points
-        .iter()
-        .map(|&(s, d)| (d - alpha - beta * s).powi(2))
-        .sum::<f64>()
-        / (n - 2.0).max(1.0);
+    let var = points.iter().map(|&(s, d)| (d - alpha - beta * s).powi(2)).sum::<f64>() / (n - 2.0).max(1.0);
     Some((alpha, beta, var, ms, sss))
 }
 
@@ -120,8 +104,7 @@ pub fn fit_lines3d(
             .filter(|&&i| !disparity[i as usize].is_nan())
             .map(|&i| (along(i), disparity[i as usize], i))
             .collect();
-        let pairs =
-            |pts: &[(f64, f64, u32)]| pts.iter().map(|&(s, d, _)| (s, d)).collect::<Vec<_>>();
+        let pairs = |pts: &[(f64, f64, u32)]| pts.iter().map(|&(s, d, _)| (s, d)).collect::<Vec<_>>();
         // Two passes: fit, drop outliers, fit again.
         let mut fit = None;
         for _ in 0..2 {
@@ -138,11 +121,7 @@ pub fn fit_lines3d(
         let Some((alpha, beta, var, ms, sss)) = linear_fit(&pairs(&points)).or(fit) else {
             continue;
         };
-        let (lo, hi) = points
-            .iter()
-            .fold((f64::MAX, f64::MIN), |(a, b), &(s, ..)| {
-                (a.min(s), b.max(s))
-            });
+        let (lo, hi) = points.iter().fold((f64::MAX, f64::MIN), |(a, b), &(s, ..)| (a.min(s), b.max(s)));
         if (hi - lo) < p.min_span as f64 * len || beta.abs() > p.max_slope as f64 {
             continue;
         }
@@ -150,22 +129,14 @@ pub fn fit_lines3d(
         let end = |s: f64| {
             let d = alpha + beta * s;
             let sigma_d = (var * (1.0 / n + (s - ms).powi(2) / sss)).sqrt();
-            let (x, y) = (
-                line.start[0] as f64 + s * dir[0] as f64,
-                line.start[1] as f64 + s * dir[1] as f64,
-            );
+            let (x, y) = (line.start[0] as f64 + s * dir[0] as f64, line.start[1] as f64 + s * dir[1] as f64);
             let point = rect.triangulate(x, y, d);
             let depth = rect.f * rect.baseline / d;
             (point, depth * depth * sigma_d / (rect.f * rect.baseline))
         };
         let ((a, sigma_a), (b, sigma_b)) = (end(0.0), end(len));
         let (disparity_start, disparity_end) = (alpha, alpha + beta * len);
-        if !(a
-            .coords
-            .iter()
-            .chain(b.coords.iter())
-            .all(|c| c.is_finite()))
-        {
+        if !(a.coords.iter().chain(b.coords.iter()).all(|c| c.is_finite())) {
             continue;
         }
         out.push(Line3 {
@@ -220,54 +191,30 @@ pub fn complete_flat_lines(
         // a closed string).
         let gap = |from: u32, to: u32| (to + string_len - from) % string_len;
         let neighbour = |before: bool| {
-            lines
-                .iter()
-                .enumerate()
-                .filter(|(k, o)| *k != li && o.string == line.string)
-                .find_map(|(k, o)| {
-                    let g = if before {
-                        gap(o.last, line.first)
-                    } else {
-                        gap(line.last, o.first)
-                    };
-                    (g <= max_gap)
-                        .then_some(by_line[k])
-                        .flatten()
-                        .map(|i3| (k, i3))
-                })
+            lines.iter().enumerate().filter(|(k, o)| *k != li && o.string == line.string).find_map(|(k, o)| {
+                let g = if before { gap(o.last, line.first) } else { gap(line.last, o.first) };
+                (g <= max_gap).then_some(by_line[k]).flatten().map(|i3| (k, i3))
+            })
         };
         // Or, where the string broke at the corner, a 3D line ending right there in the image.
         let meeting = |q: [f32; 2]| {
-            lines
-                .iter()
-                .enumerate()
-                .filter(|(k, _)| *k != li)
-                .find_map(|(k, o)| {
-                    let near = |e: [f32; 2]| {
-                        (e[0] - q[0]).powi(2) + (e[1] - q[1]).powi(2) <= CORNER_PX * CORNER_PX
-                    };
-                    let turns = {
-                        let (a, b) = (o.direction(), line.direction());
-                        (a[0] * b[1] - a[1] * b[0]).abs() > 0.3
-                    };
-                    ((near(o.start) || near(o.end)) && turns)
-                        .then_some(by_line[k])
-                        .flatten()
-                        .map(|i3| (k, i3))
-                })
+            lines.iter().enumerate().filter(|(k, _)| *k != li).find_map(|(k, o)| {
+                let near = |e: [f32; 2]| (e[0] - q[0]).powi(2) + (e[1] - q[1]).powi(2) <= CORNER_PX * CORNER_PX;
+                let turns = {
+                    let (a, b) = (o.direction(), line.direction());
+                    (a[0] * b[1] - a[1] * b[0]).abs() > 0.3
+                };
+                ((near(o.start) || near(o.end)) && turns).then_some(by_line[k]).flatten().map(|i3| (k, i3))
+            })
         };
-        let (Some((pk, p3)), Some((nk, n3))) = (
-            neighbour(true).or_else(|| meeting(line.start)),
-            neighbour(false).or_else(|| meeting(line.end)),
-        ) else {
+        let (Some((pk, p3)), Some((nk, n3))) =
+            (neighbour(true).or_else(|| meeting(line.start)), neighbour(false).or_else(|| meeting(line.end)))
+        else {
             continue;
         };
         let d_start = disparity_near(&lines3d[p3], &lines[pk], line.start);
         let d_end = disparity_near(&lines3d[n3], &lines[nk], line.end);
-        if d_start <= 0.0
-            || d_end <= 0.0
-            || (d_end - d_start).abs() > p.max_slope as f64 * line.length() as f64
-        {
+        if d_start <= 0.0 || d_end <= 0.0 || (d_end - d_start).abs() > p.max_slope as f64 * line.length() as f64 {
             continue;
         }
         let a = rect.triangulate(line.start[0] as f64, line.start[1] as f64, d_start);

@@ -107,32 +107,17 @@ impl Rasters {
 
     fn row(&self, r: i32) -> &[u32] {
         let k = r - self.first_row;
-        if k < 0 || k as usize >= self.rows.len() {
-            &[]
-        } else {
-            &self.rows[k as usize]
-        }
+        if k < 0 || k as usize >= self.rows.len() { &[] } else { &self.rows[k as usize] }
     }
 }
 
 /// Matches rectified left edgels to rectified right edgels.
-pub fn pmf(
-    left: &[Edgel],
-    right: &[Edgel],
-    left_strings: &[EdgeString],
-    p: &PmfParams,
-) -> Vec<Match> {
+pub fn pmf(left: &[Edgel], right: &[Edgel], left_strings: &[EdgeString], p: &PmfParams) -> Vec<Match> {
     let (offsets, mut cands) = candidates(left, right, p);
     let neighbours = neighbourhoods(left, p.support_radius);
-    let mut matches = winner_takes_all(
-        left,
-        right,
-        &offsets,
-        &mut cands,
-        |cands: &mut [Candidate], done: &[bool]| {
-            support(left, &offsets, cands, &neighbours, done, p)
-        },
-    );
+    let mut matches = winner_takes_all(left, right, &offsets, &mut cands, |cands: &mut [Candidate], done: &[bool]| {
+        support(left, &offsets, cands, &neighbours, done, p)
+    });
     enforce_ordering(&mut matches);
     figural_continuity(&mut matches, left.len(), left_strings, p.continuity_step);
     matches
@@ -149,12 +134,7 @@ fn candidates(left: &[Edgel], right: &[Edgel], p: &PmfParams) -> (Vec<usize>, Ve
             continue;
         }
         let row = l.y.round() as i32;
-        for &ri in rasters
-            .row(row - 1)
-            .iter()
-            .chain(rasters.row(row))
-            .chain(rasters.row(row + 1))
-        {
+        for &ri in rasters.row(row - 1).iter().chain(rasters.row(row)).chain(rasters.row(row + 1)) {
             let r = &right[ri as usize];
             if (r.y - l.y).abs() > 0.5 || flat(r) {
                 continue;
@@ -175,15 +155,9 @@ fn candidates(left: &[Edgel], right: &[Edgel], p: &PmfParams) -> (Vec<usize>, Ve
             let turn = angle_diff(l.orientation, r.orientation);
             let along_edge_gradient = (slope(l.orientation) - slope(r.orientation)).abs();
             let compatible = turn < p.orientation_accept
-                || (turn <= p.orientation_reject
-                    && along_edge_gradient <= p.orientation_gradient_limit);
+                || (turn <= p.orientation_reject && along_edge_gradient <= p.orientation_gradient_limit);
             if compatible {
-                out.push(Candidate {
-                    right: ri,
-                    disparity,
-                    strength: 0.0,
-                    alive: true,
-                });
+                out.push(Candidate { right: ri, disparity, strength: 0.0, alive: true });
             }
         }
     }
@@ -195,8 +169,7 @@ fn candidates(left: &[Edgel], right: &[Edgel], p: &PmfParams) -> (Vec<usize>, Ve
 fn neighbourhoods(left: &[Edgel], radius: f32) -> Vec<Vec<(u32, f32)>> {
     let cell = radius.max(1.0);
     let key = |e: &Edgel| ((e.x / cell).floor() as i32, (e.y / cell).floor() as i32);
-    let mut grid: std::collections::HashMap<(i32, i32), Vec<u32>> =
-        std::collections::HashMap::new();
+    let mut grid: std::collections::HashMap<(i32, i32), Vec<u32>> = std::collections::HashMap::new();
     for (i, e) in left.iter().enumerate() {
         grid.entry(key(e)).or_default().push(i as u32);
     }
@@ -291,8 +264,7 @@ fn winner_takes_all(
         }
     }
     let strongest = |cs: &[Candidate], ids: &mut dyn Iterator<Item = usize>| -> Option<usize> {
-        ids.filter(|&c| cs[c].alive)
-            .max_by(|&a, &b| cs[a].strength.total_cmp(&cs[b].strength).then(b.cmp(&a)))
+        ids.filter(|&c| cs[c].alive).max_by(|&a, &b| cs[a].strength.total_cmp(&cs[b].strength).then(b.cmp(&a)))
     };
     let mut matches = Vec::new();
     let mut matched_left = vec![false; left.len()];
@@ -346,8 +318,7 @@ fn winner_takes_all(
 fn enforce_ordering(matches: &mut Vec<Match>) {
     let mut order: Vec<usize> = (0..matches.len()).collect();
     order.sort_by(|&a, &b| matches[b].strength.total_cmp(&matches[a].strength));
-    let mut kept: std::collections::HashMap<i32, Vec<(f32, f32)>> =
-        std::collections::HashMap::new();
+    let mut kept: std::collections::HashMap<i32, Vec<(f32, f32)>> = std::collections::HashMap::new();
     let mut keep = vec![false; matches.len()];
     for i in order {
         let m = &matches[i];
@@ -397,11 +368,7 @@ mod tests {
     fn edge(x0: f32, y0: i32, rows: i32, dx_per_row: f32, bright_right: bool) -> Vec<Edgel> {
         // Tangent (dx, 1) per row; gradient perpendicular, pointing to the bright side.
         let t = (dx_per_row, 1.0f32);
-        let g = if bright_right {
-            (t.1, -t.0)
-        } else {
-            (-t.1, t.0)
-        };
+        let g = if bright_right { (t.1, -t.0) } else { (-t.1, t.0) };
         (0..rows)
             .map(|k| Edgel {
                 x: x0 + dx_per_row * k as f32,
@@ -417,9 +384,7 @@ mod tests {
         lengths
             .iter()
             .map(|&n| {
-                let s = EdgeString {
-                    edgels: (start..start + n as u32).collect(),
-                };
+                let s = EdgeString { edgels: (start..start + n as u32).collect() };
                 start += n as u32;
                 s
             })
@@ -441,23 +406,11 @@ mod tests {
         left.extend(edge(95.0, 41, 10, 5.0, false));
         right.extend(edge(95.0 - 41.0, 41, 10, 5.0, false));
         let strings = strings_of(&[30, 30, 30, 10]);
-        let p = PmfParams {
-            disparity_min: 20.0,
-            disparity_max: 80.0,
-            ..PmfParams::default()
-        };
+        let p = PmfParams { disparity_min: 20.0, disparity_max: 80.0, ..PmfParams::default() };
         let matches = pmf(&left, &right, &strings, &p);
-        assert!(
-            matches.len() >= 80,
-            "only {} of 90 edgels matched",
-            matches.len()
-        );
+        assert!(matches.len() >= 80, "only {} of 90 edgels matched", matches.len());
         for m in &matches {
-            let expected = if m.left < 90 {
-                truth[m.left as usize / 30].1
-            } else {
-                41.0
-            };
+            let expected = if m.left < 90 { truth[m.left as usize / 30].1 } else { 41.0 };
             assert!(
                 (m.disparity - expected).abs() < 1e-3,
                 "edgel {} matched at {} not {expected}",
@@ -477,28 +430,13 @@ mod tests {
         let left = edge(100.0, 10, 20, 0.0, true);
         let flipped = edge(60.0, 10, 20, 0.0, false);
         let strings = strings_of(&[20]);
-        let p = PmfParams {
-            disparity_min: 20.0,
-            disparity_max: 80.0,
-            ..PmfParams::default()
-        };
+        let p = PmfParams { disparity_min: 20.0, disparity_max: 80.0, ..PmfParams::default() };
         assert!(pmf(&left, &flipped, &strings, &p).is_empty());
         // An edge along the rasters has no defined disparity.
         let flat: Vec<Edgel> = (0..20)
-            .map(|k| Edgel {
-                x: 100.0 + k as f32,
-                y: 10.0,
-                orientation: std::f32::consts::FRAC_PI_2,
-                contrast: 20.0,
-            })
+            .map(|k| Edgel { x: 100.0 + k as f32, y: 10.0, orientation: std::f32::consts::FRAC_PI_2, contrast: 20.0 })
             .collect();
-        let flat_right: Vec<Edgel> = flat
-            .iter()
-            .map(|e| Edgel {
-                x: e.x - 40.0,
-                ..*e
-            })
-            .collect();
+        let flat_right: Vec<Edgel> = flat.iter().map(|e| Edgel { x: e.x - 40.0, ..*e }).collect();
         assert!(pmf(&flat, &flat_right, &strings, &p).is_empty());
     }
 }

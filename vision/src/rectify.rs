@@ -49,9 +49,7 @@ impl Rectification {
         let z = (mean_axis - x * x.dot(&mean_axis)).normalize();
         let y = z.cross(&x);
         let world_from_rect = Rotation3::from_basis_unchecked(&[x, y, z]);
-        let rect_from = |c: &PinholeCamera| {
-            world_from_rect.inverse() * c.world_from_cam.rotation.to_rotation_matrix()
-        };
+        let rect_from = |c: &PinholeCamera| world_from_rect.inverse() * c.world_from_cam.rotation.to_rotation_matrix();
         let k = |c: &PinholeCamera| k_matrix(c);
         Rectification {
             f: l.fx,
@@ -113,12 +111,7 @@ impl Rectification {
                 let (tx, ty) = apply(&h, x - s, y + c);
                 // Tangent (-sin, cos) of the gradient angle: angle = atan2(-tangent.x, tangent.y).
                 let orientation = (-(tx - rx)).atan2(ty - ry);
-                Edgel {
-                    x: rx as f32,
-                    y: ry as f32,
-                    orientation: orientation as f32,
-                    contrast: e.contrast,
-                }
+                Edgel { x: rx as f32, y: ry as f32, orientation: orientation as f32, contrast: e.contrast }
             })
             .collect()
     }
@@ -158,10 +151,7 @@ mod tests {
                 Vector3::z(),
             )
         };
-        StereoCalibration {
-            left: cam(-0.1),
-            right: cam(0.1),
-        }
+        StereoCalibration { left: cam(-0.1), right: cam(0.1) }
     }
 
     #[test]
@@ -169,15 +159,8 @@ mod tests {
         let calib = verged_pair();
         let rect = Rectification::new(&calib);
         assert!((rect.baseline - 0.2).abs() < 1e-12);
-        for p in [
-            Point3::new(0.0, 0.0, 0.0),
-            Point3::new(0.1, -0.05, 0.03),
-            Point3::new(-0.12, 0.15, 0.08),
-        ] {
-            let (l, r) = (
-                calib.left.project_world(&p).unwrap(),
-                calib.right.project_world(&p).unwrap(),
-            );
+        for p in [Point3::new(0.0, 0.0, 0.0), Point3::new(0.1, -0.05, 0.03), Point3::new(-0.12, 0.15, 0.08)] {
+            let (l, r) = (calib.left.project_world(&p).unwrap(), calib.right.project_world(&p).unwrap());
             let (lx, ly) = rect.to_rectified(Side::Left, l.x, l.y);
             let (rx, ry) = rect.to_rectified(Side::Right, r.x, r.y);
             assert!((ly - ry).abs() < 1e-9, "rows differ: {ly} vs {ry}");
@@ -205,36 +188,17 @@ mod tests {
         // A world line seen by the left camera: its rectified image must have the direction the
         // rectified edgel's tangent claims.
         let (a, b) = (Point3::new(-0.05, 0.02, 0.0), Point3::new(0.06, 0.07, 0.0));
-        let (pa, pb) = (
-            calib.left.project_world(&a).unwrap(),
-            calib.left.project_world(&b).unwrap(),
-        );
+        let (pa, pb) = (calib.left.project_world(&a).unwrap(), calib.left.project_world(&b).unwrap());
         let mid = (pa + pb.coords) / 2.0;
         let t = (pb - pa).normalize();
-        let e = Edgel {
-            x: mid.x as f32,
-            y: mid.y as f32,
-            orientation: t.x.atan2(-t.y) as f32,
-            contrast: 10.0,
-        };
+        let e = Edgel { x: mid.x as f32, y: mid.y as f32, orientation: t.x.atan2(-t.y) as f32, contrast: 10.0 };
         let r = rect.rectify_edgels(Side::Left, &[e])[0];
-        let (ra, rb) = (
-            rect.to_rectified(Side::Left, pa.x, pa.y),
-            rect.to_rectified(Side::Left, pb.x, pb.y),
-        );
+        let (ra, rb) = (rect.to_rectified(Side::Left, pa.x, pa.y), rect.to_rectified(Side::Left, pb.x, pb.y));
         let rt = Vector3::new(rb.0 - ra.0, rb.1 - ra.1, 0.0).normalize();
-        let tangent = Vector3::new(
-            -(r.orientation as f64).sin(),
-            (r.orientation as f64).cos(),
-            0.0,
-        );
-        assert!(
-            tangent.cross(&rt).norm() < 1e-4,
-            "tangent {tangent} vs {rt}"
-        );
+        let tangent = Vector3::new(-(r.orientation as f64).sin(), (r.orientation as f64).cos(), 0.0);
+        assert!(tangent.cross(&rt).norm() < 1e-4, "tangent {tangent} vs {rt}");
         // The warp turns the image by a few degrees only, so the gradient keeps its sense.
-        let turn = (r.orientation - e.orientation + std::f32::consts::PI)
-            .rem_euclid(std::f32::consts::TAU)
+        let turn = (r.orientation - e.orientation + std::f32::consts::PI).rem_euclid(std::f32::consts::TAU)
             - std::f32::consts::PI;
         assert!(turn.abs() < 0.3, "gradient turned by {turn} rad");
     }

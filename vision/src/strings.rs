@@ -46,24 +46,14 @@ fn walk(map: &EdgeMap, start: u32, used: &mut [bool]) -> Vec<u32> {
 }
 
 /// Follows unused neighbours from `start` (marking them used); `heading` is the last step.
-fn walk_from(
-    map: &EdgeMap,
-    start: u32,
-    used: &mut [bool],
-    mut heading: Option<(i32, i32)>,
-) -> Vec<u32> {
+fn walk_from(map: &EdgeMap, start: u32, used: &mut [bool], mut heading: Option<(i32, i32)>) -> Vec<u32> {
     let mut chain = vec![start];
     used[start as usize] = true;
     let mut at = start;
     loop {
         let (x, y) = map.pixel_of(at);
         let next = neighbours(x, y, map.width, map.height)
-            .filter_map(|(nx, ny)| {
-                Some((
-                    map.edgel_at(nx, ny)?,
-                    (nx as i32 - x as i32, ny as i32 - y as i32),
-                ))
-            })
+            .filter_map(|(nx, ny)| Some((map.edgel_at(nx, ny)?, (nx as i32 - x as i32, ny as i32 - y as i32))))
             .filter(|&(j, _)| !used[j as usize])
             .min_by_key(|&(_, (dx, dy))| {
                 let diagonal = i32::from(dx != 0 && dy != 0);
@@ -87,13 +77,7 @@ mod tests {
     fn square_image() -> GreyImage {
         let (w, h) = (64, 64);
         let pixels = (0..w * h)
-            .map(|i| {
-                if (20..44).contains(&(i % w)) && (16..40).contains(&(i / w)) {
-                    200
-                } else {
-                    50
-                }
-            })
+            .map(|i| if (20..44).contains(&(i % w)) && (16..40).contains(&(i / w)) { 200 } else { 50 })
             .collect();
         GreyImage::new(w, h, pixels).unwrap()
     }
@@ -102,28 +86,16 @@ mod tests {
     fn a_square_outline_is_one_closed_string() {
         let map = canny(&square_image(), &CannyParams::default());
         let strings = link_strings(&map, 5);
-        assert_eq!(
-            strings.len(),
-            1,
-            "strings: {:?}",
-            strings.iter().map(|s| s.edgels.len()).collect::<Vec<_>>()
-        );
+        assert_eq!(strings.len(), 1, "strings: {:?}", strings.iter().map(|s| s.edgels.len()).collect::<Vec<_>>());
         let s = &strings[0];
-        assert!(
-            s.edgels.len() >= 4 * 20,
-            "only {} edgels around a 24 px square",
-            s.edgels.len()
-        );
+        assert!(s.edgels.len() >= 4 * 20, "only {} edgels around a 24 px square", s.edgels.len());
         // Consecutive edgels are 8-neighbours.
         for w in s.edgels.windows(2) {
             let ((x0, y0), (x1, y1)) = (map.pixel_of(w[0]), map.pixel_of(w[1]));
             assert!(x0.abs_diff(x1) <= 1 && y0.abs_diff(y1) <= 1);
         }
         // And the string closes on itself.
-        let ((xa, ya), (xb, yb)) = (
-            map.pixel_of(s.edgels[0]),
-            map.pixel_of(*s.edgels.last().unwrap()),
-        );
+        let ((xa, ya), (xb, yb)) = (map.pixel_of(s.edgels[0]), map.pixel_of(*s.edgels.last().unwrap()));
         assert!(xa.abs_diff(xb) <= 1 && ya.abs_diff(yb) <= 1);
     }
 

@@ -1,0 +1,335 @@
+//! Spatial parallelism as MARVIN had it: both images cut into horizontal slices (8 of ~64
+//! rasters, adjacent slices sharing 2 rasters), each slice pair taken through Canny, strings,
+//! rectification, PMF, 2D and 3D lines on its own and in parallel, and a Joiner that merges the
+//! per-slice descriptions where 2D lines continue across a seam, as if one processor had done
+//! the whole image.
+//!
+//! Each slice processor also reads a halo of [`HALO`] rasters beyond its slice: PMF weighs a
+//! match by its neighbours up to 20 px away, and an edgel near a seam judged without the
+//! neighbours across it is judged differently from the whole image (measured: with the 2-raster
+//! overlap alone, only 45% of 3D lines came out the same). What a slice reports from its halo
+//! is only context: the Joiner keeps each edgel and match from the slice that owns its row.
+//!
+//! The right slice covers every right-image raster whose rectified row meets the rectified rows
+//! of the left slice: the verged cameras' warp shifts and tilts rows, so it is taller than the
+//! left slice and offset from it.
+
+use crate::canny::{CannyParams, CannyWorkspace, EdgeMap, Edgel};
+use crate::front_end::{FrontEnd, MIN_STRING, WORKSPACE_DEPTH_M, disparity_range};
+use crate::image::GreyImage;
+use crate::lines2d::{Line2, Lines2dParams, fit_lines};
+use crate::lines3d::{Line3, Lines3dParams, complete_flat_lines, fit_lines3d};
+use crate::pmf::{Match, PmfParams, pmf};
+use crate::rectify::{Rectification, Side};
+use crate::strings::{EdgeString, link_strings};
+use mesh::StereoCalibration;
+use rayon::prelude::*;
+use std::ops::Range;
+use std::time::Instant;
+
+/// Rasters shared by adjacent slices.
+pub const OVERLAP: usize = 2;
+/// Rasters of context a slice processor reads beyond its slice (PMF's support radius and some).
+pub const HALO: usize = 24;
+/// Rasters of image above and below a slice that Canny reads for its smoothing and
+/// non-maximum suppression (its edgels come only from the slice's own rows).
+const CANNY_CONTEXT: usize = 6;
+
+/// Where one slice lies in each image.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SlicePlan {
+    /// Left rasters this slice answers for (the Joiner keeps its edgels from these).
+    pub owned: Range<usize>,
+    /// Left rasters it processes: its own, the overlap into the next slice, and the halo.
+    pub left: Range<usize>,
+    /// Right rasters it processes.
+    pub right: Range<usize>,
+}
+
+/// Cuts `height` rows into `n` slices and finds each one's right-image extent.
+pub fn plan(height: usize, width: usize, n: usize, rect: &Rectification) -> Vec<SlicePlan> {
+    let n = n.clamp(1, height.max(1));
+    (0..n)
+        .map(|k| {
+            let owned = k * height / n..(k + 1) * height / n;
+            let left = owned.start.saturating_sub(HALO)..(owned.end + OVERLAP + HALO).min(height);
+            // The rectified rows the left slice spans (a rectified row is straight, so the
+            // corners of the slice bound it).
+            let band = rectified_band(rect, Side::Left, &left, width);
+            let rows: Vec<usize> = (0..height)
+                .filter(|&r| {
+                    let b = rectified_band(rect, Side::Right, &(r..r + 1), width);
+                    b.0 <= band.1 + 1.0 && b.1 >= band.0 - 1.0
+                })
+                .collect();
+            let right = match (rows.first(), rows.last()) {
+                (Some(&a), Some(&b)) => a..b + 1,
+                _ => 0..0,
+            };
+            SlicePlan { owned, left, right }
+        })
+        .collect()
+}
+
+/// Lowest and highest rectified row that rows `rows` of one camera's image map to.
+fn rectified_band(rect: &Rectification, side: Side, rows: &Range<usize>, width: usize) -> (f64, f64) {
+    let (top, bottom) = (rows.start as f64 - 0.5, rows.end as f64 - 0.5);
+    let corners = [(-0.5, top), (width as f64 - 0.5, top), (-0.5, bottom), (width as f64 - 0.5, bottom)];
+    corners.iter().fold((f64::MAX, f64::MIN), |(lo, hi), &(x, y)| {
+        let (_, ry) = rect.to_rectified(side, x, y);
+        (lo.min(ry), hi.max(ry))
+    })
+}
+
+thread_local! {
+    /// Canny's buffers, kept per worker thread from slice to slice.
+    static SLICE_CANNY: std::cell::RefCell<CannyWorkspace> = Default::default();
+}
+
+/// Canny's edgels from rows `rows` of `img`, found with a little context around them, in
+/// whole-image coordinates; and the map they sit in (sub-image pixels) for linking.
+fn canny_rows(img: &GreyImage, rows: &Range<usize>, params: &CannyParams) -> (EdgeMap, usize) {
+    let from = rows.start.saturating_sub(CANNY_CONTEXT);
+    let to = (rows.end + CANNY_CONTEXT).min(img.height);
+    let sub = GreyImage::new(img.width, to - from, img.pixels[from * img.width..to * img.width].to_vec())
+        .expect("rows are within the image");
+    let mut map = EdgeMap::default();
+    SLICE_CANNY.with(|ws| ws.borrow_mut().run(&sub, params, &mut map));
+    let keep = (rows.start - from)..(rows.end - from);
+    (map.retain_rows(&keep), from)
+}
+
+/// What one slice pair found; edgel indices are the slice's own.
+#[derive(Debug, Clone)]
+pub struct SliceResult {
+    pub plan: SlicePlan,
+    /// Left edgels in whole-image pixels, and rectified.
+    pub left: Vec<Edgel>,
+    pub left_rect: Vec<Edgel>,
+    /// Whole-image pixel (row-major index) of each left edgel, and the image width.
+    pub left_pixel: Vec<usize>,
+    pub width: usize,
+    pub right: Vec<Edgel>,
+    /// Whole-image pixel of each right edgel (right slices overlap a lot; the Joiner dedupes).
+    pub right_pixel: Vec<usize>,
+    pub strings: Vec<EdgeString>,
+    pub matches: Vec<Match>,
+    pub lines2d: Vec<Line2>,
+    pub lines3d: Vec<Line3>,
+}
+
+fn shift(edgels: &[Edgel], dy: usize) -> Vec<Edgel> {
+    edgels.iter().map(|e| Edgel { y: e.y + dy as f32, ..*e }).collect()
+}
+
+/// Stages 1-6 on one slice pair.
+pub fn run_slice(
+    left: &GreyImage,
+    right: &GreyImage,
+    plan: &SlicePlan,
+    rect: &Rectification,
+    params: &CannyParams,
+) -> SliceResult {
+    let (lmap, lfrom) = canny_rows(left, &plan.left, params);
+    let (rmap, rfrom) = canny_rows(right, &plan.right, params);
+    let strings = link_strings(&lmap, MIN_STRING);
+    let left_edgels = shift(&lmap.edgels, lfrom);
+    let left_pixel = (0..lmap.edgels.len()).map(|i| lmap.pixel[i] as usize + lfrom * left.width).collect();
+    let right_edgels = shift(&rmap.edgels, rfrom);
+    let right_pixel = rmap.pixel.iter().map(|&p| p as usize + rfrom * right.width).collect();
+    let left_rect = rect.rectify_edgels(Side::Left, &left_edgels);
+    let right_rect = rect.rectify_edgels(Side::Right, &right_edgels);
+    let (disparity_min, disparity_max) = disparity_range(rect, WORKSPACE_DEPTH_M.0, WORKSPACE_DEPTH_M.1);
+    let pmf_params = PmfParams { disparity_min, disparity_max, ..PmfParams::default() };
+    let matches = pmf(&left_rect, &right_rect, &strings, &pmf_params);
+    let lines2d = fit_lines(&left_rect, &strings, &Lines2dParams::default());
+    let p3 = Lines3dParams::default();
+    let mut lines3d = fit_lines3d(&lines2d, &strings, &left_rect, &matches, rect, &p3);
+    complete_flat_lines(&lines2d, &strings, &mut lines3d, rect, &p3, 6);
+    SliceResult {
+        plan: plan.clone(),
+        left: left_edgels,
+        left_rect,
+        left_pixel,
+        width: left.width,
+        right: right_edgels,
+        right_pixel,
+        strings,
+        matches,
+        lines2d,
+        lines3d,
+    }
+}
+
+/// The front end with the images cut into `n` slices processed in parallel, then joined.
+pub fn run_sliced(
+    left: &GreyImage,
+    right: &GreyImage,
+    calib: &StereoCalibration,
+    params: &CannyParams,
+    n: usize,
+) -> FrontEnd {
+    let clock = Instant::now();
+    let rect = Rectification::new(calib);
+    let plans = plan(left.height, left.width, n, &rect);
+    let slices: Vec<SliceResult> = plans.par_iter().map(|p| run_slice(left, right, p, &rect, params)).collect();
+    let slices_ms = clock.elapsed().as_secs_f64() * 1e3;
+    let clock = Instant::now();
+    let mut fe = join(&slices, rect, left.width, left.height);
+    fe.timings_ms = vec![("slices", slices_ms), ("join", clock.elapsed().as_secs_f64() * 1e3)];
+    fe
+}
+
+/// The Joiner. Edgels and matches come from the slice that owns their row. A string that lay
+/// wholly in one slice's own rows keeps that slice's 2D and 3D lines as they are; edgels of
+/// strings that crossed a seam are linked again across it, and their 2D and 3D lines fitted
+/// afresh from the joined strings and the owners' matches, as one processor would have.
+pub fn join(slices: &[SliceResult], rect: Rectification, width: usize, height: usize) -> FrontEnd {
+    let mut fe = FrontEnd::empty(Some(rect.clone()));
+    fe.left = EdgeMap::new(width, height);
+    fe.right = EdgeMap::new(width, height);
+    let mut ids_of: Vec<Vec<Option<u32>>> = Vec::with_capacity(slices.len());
+    for s in slices {
+        let mut ids = vec![None; s.left.len()];
+        for (i, e) in s.left.iter().enumerate() {
+            if owns(s, i) {
+                ids[i] = Some(fe.left.edgels.len() as u32);
+                fe.left.push(s.left_pixel[i], *e);
+                fe.left_rectified.push(s.left_rect[i]);
+            }
+        }
+        fe.matches.extend(s.matches.iter().filter_map(|m| Some(Match { left: ids[m.left as usize]?, ..*m })));
+        for (e, &p) in s.right.iter().zip(&s.right_pixel) {
+            if fe.right.at_pixel[p] == crate::canny::NO_EDGEL {
+                fe.right.push(p, *e);
+            }
+        }
+        ids_of.push(ids);
+    }
+    // Link the owned edgels over the whole image: across the seams, strings come out as one
+    // processor would have linked them.
+    fe.left_strings = link_strings(&fe.left, MIN_STRING);
+    // A string some slice saw whole, in the same order, keeps that slice's lines; the others
+    // (those that crossed a seam) have their 2D and 3D lines fitted afresh.
+    let mut seen_whole: std::collections::HashMap<Vec<u32>, (usize, usize)> = Default::default();
+    for (k, (s, ids)) in slices.iter().zip(&ids_of).enumerate() {
+        for (si, st) in s.strings.iter().enumerate() {
+            if let Some(global) = st.edgels.iter().map(|&i| ids[i as usize]).collect::<Option<Vec<u32>>>() {
+                seen_whole.insert(global, (k, si));
+            }
+        }
+    }
+    let mut inlier = vec![false; fe.left.edgels.len()];
+    let mut refit = Vec::new();
+    for (gi, st) in fe.left_strings.iter().enumerate() {
+        let Some(&(k, si)) = seen_whole.get(&st.edgels) else {
+            refit.push(gi);
+            continue;
+        };
+        let (s, ids) = (&slices[k], &ids_of[k]);
+        for (li, line) in s.lines2d.iter().enumerate().filter(|(_, l)| l.string as usize == si) {
+            let line2 = fe.lines2d.len() as u32;
+            fe.lines2d.push(Line2 { string: gi as u32, ..line.clone() });
+            if let Some(l3) = s.lines3d.iter().find(|l3| l3.line2 as usize == li) {
+                let inliers: Vec<u32> = l3.inliers.iter().filter_map(|&i| ids[i as usize]).collect();
+                for &g in &inliers {
+                    inlier[g as usize] = true;
+                }
+                fe.lines3d.push(Line3 { line2, inliers, ..l3.clone() });
+            }
+        }
+    }
+    let p3 = Lines3dParams::default();
+    let to_refit: Vec<EdgeString> = refit.iter().map(|&gi| fe.left_strings[gi].clone()).collect();
+    let mut lines = fit_lines(&fe.left_rectified, &to_refit, &Lines2dParams::default());
+    let mut lines3d = fit_lines3d(&lines, &to_refit, &fe.left_rectified, &fe.matches, &rect, &p3);
+    let line_base = fe.lines2d.len() as u32;
+    for l in &mut lines {
+        l.string = refit[l.string as usize] as u32;
+    }
+    for l3 in &mut lines3d {
+        l3.line2 += line_base;
+        for &g in &l3.inliers {
+            inlier[g as usize] = true;
+        }
+    }
+    fe.lines2d.extend(lines);
+    fe.lines3d.extend(lines3d);
+    // Flat lines take their 3D ends from the lines meeting them, whichever slice those came from.
+    complete_flat_lines(&fe.lines2d, &fe.left_strings, &mut fe.lines3d, &rect, &p3, 6);
+    // As the whole-image front end does: vouch only for matches on 3D lines.
+    fe.matches.retain(|m| inlier[m.left as usize]);
+    fe
+}
+
+/// Whether slice `s` owns its left edgel `i` (the edgel's row is one of the slice's own).
+fn owns(s: &SliceResult, i: usize) -> bool {
+    s.plan.owned.contains(&(s.left_pixel[i] / s.width))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use mesh::PinholeCamera;
+    use nalgebra::{Point3, Vector3};
+
+    fn verged_pair() -> StereoCalibration {
+        let cam = |x: f64| {
+            PinholeCamera::looking_at(
+                (512, 512),
+                1000.0,
+                [255.5, 255.5],
+                Point3::new(x, -0.6894, 0.5785),
+                Point3::origin(),
+                Vector3::z(),
+            )
+        };
+        StereoCalibration { left: cam(-0.1), right: cam(0.1) }
+    }
+
+    #[test]
+    fn slices_cover_the_image_sharing_two_rasters() {
+        let rect = Rectification::new(&verged_pair());
+        let plans = plan(512, 512, 8, &rect);
+        assert_eq!(plans.len(), 8);
+        assert_eq!(plans[0].owned.start, 0);
+        assert_eq!(plans[7].owned.end, 512);
+        for w in plans.windows(2) {
+            assert_eq!(w[0].owned.end, w[1].owned.start);
+            assert!(w[0].left.end >= w[1].owned.start + OVERLAP);
+        }
+        assert!(plans.iter().all(|p| (p.owned.end - p.owned.start) == 64));
+    }
+
+    #[test]
+    fn a_right_slice_holds_what_its_left_slice_sees() {
+        // Points on the table and above it, seen in a left slice, must fall in its right slice.
+        let calib = verged_pair();
+        let rect = Rectification::new(&calib);
+        let plans = plan(512, 512, 8, &rect);
+        for ix in -10..=10 {
+            for iy in -10..=10 {
+                for z in [0.0, 0.1] {
+                    let p = Point3::new(ix as f64 * 0.02, iy as f64 * 0.02, z);
+                    let (Some(l), Some(r)) = (calib.left.project_world(&p), calib.right.project_world(&p)) else {
+                        continue;
+                    };
+                    if !(0.0..511.5).contains(&l.y)
+                        || !(0.0..511.5).contains(&r.y)
+                        || !(0.0..511.5).contains(&l.x)
+                        || !(0.0..511.5).contains(&r.x)
+                    {
+                        continue;
+                    }
+                    let row = l.y.round() as usize;
+                    let slice = plans.iter().find(|s| s.owned.contains(&row)).unwrap();
+                    assert!(
+                        slice.right.contains(&(r.y.round() as usize)),
+                        "point {p} at left row {row}, right row {}, slice {slice:?}",
+                        r.y
+                    );
+                }
+            }
+        }
+    }
+}
