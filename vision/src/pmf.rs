@@ -114,9 +114,10 @@ impl Rasters {
 /// Matches rectified left edgels to rectified right edgels.
 pub fn pmf(left: &[Edgel], right: &[Edgel], left_strings: &[EdgeString], p: &PmfParams) -> Vec<Match> {
     let (offsets, mut cands) = candidates(left, right, p);
-    let neighbours = neighbourhoods(left, p.support_radius);
+    let has_candidates: Vec<bool> = (0..left.len()).map(|l| offsets[l + 1] > offsets[l]).collect();
+    let neighbours = neighbourhoods(left, &has_candidates, p.support_radius, p.disparity_gradient_limit);
     let mut matches = winner_takes_all(left, right, &offsets, &mut cands, |cands: &mut [Candidate], done: &[bool]| {
-        support(left, &offsets, cands, &neighbours, done, p)
+        support(left, &offsets, cands, &neighbours, done)
     });
     enforce_ordering(&mut matches);
     figural_continuity(&mut matches, left.len(), left_strings, p.continuity_step);
@@ -166,26 +167,55 @@ fn candidates(left: &[Edgel], right: &[Edgel], p: &PmfParams) -> (Vec<usize>, Ve
 }
 
 /// For each left edgel, the other left edgels within `radius` and their distances.
-fn neighbourhoods(left: &[Edgel], radius: f32) -> Vec<Vec<(u32, f32)>> {
+/// A neighbour of a left edgel, as its candidates' support needs it.
+#[derive(Debug, Clone, Copy)]
+struct Neighbour {
+    edgel: u32,
+    /// Inverse distance: what one supporting neighbour adds.
+    weight: f32,
+    /// The disparity differences (neighbour's minus this one's) within the disparity-gradient
+    /// limit, measured in the cyclopean image: `|D| <= k sqrt((dx - D/2)^2 + dy^2)` is
+    /// a quadratic in `D` with roots `lo` and `hi`, so this is worked out once per pair.
+    lo: f32,
+    hi: f32,
+}
+
+/// For each left edgel with candidates, the other such edgels within `radius`.
+fn neighbourhoods(left: &[Edgel], has_candidates: &[bool], radius: f32, limit: f32) -> Vec<Vec<Neighbour>> {
     let cell = radius.max(1.0);
     let key = |e: &Edgel| ((e.x / cell).floor() as i32, (e.y / cell).floor() as i32);
     let mut grid: std::collections::HashMap<(i32, i32), Vec<u32>> = std::collections::HashMap::new();
-    for (i, e) in left.iter().enumerate() {
+    for (i, e) in left.iter().enumerate().filter(|(i, _)| has_candidates[*i]) {
         grid.entry(key(e)).or_default().push(i as u32);
     }
+    let k2 = limit * limit;
+    let a = 1.0 - k2 / 4.0;
     left.iter()
         .enumerate()
         .map(|(i, e)| {
-            let (cx, cy) = key(e);
             let mut near = Vec::new();
+            if !has_candidates[i] {
+                return near;
+            }
+            let (cx, cy) = key(e);
             for gy in cy - 1..=cy + 1 {
                 for gx in cx - 1..=cx + 1 {
                     for &j in grid.get(&(gx, gy)).map_or(&[][..], |v| v.as_slice()) {
                         let o = &left[j as usize];
-                        let dist = ((o.x - e.x).powi(2) + (o.y - e.y).powi(2)).sqrt();
-                        if j as usize != i && dist <= radius {
-                            near.push((j, dist));
+                        let (dx, dy) = (o.x - e.x, o.y - e.y);
+                        let dist = (dx * dx + dy * dy).sqrt();
+                        if j as usize == i || dist > radius {
+                            continue;
                         }
+                        // a D^2 + b D + c <= 0, a = 1 - k^2/4, b = k^2 dx, c = -k^2 (dx^2 + dy^2).
+                        let (b, c) = (k2 * dx, -k2 * dist * dist);
+                        let root = (b * b - 4.0 * a * c).sqrt();
+                        near.push(Neighbour {
+                            edgel: j,
+                            weight: 1.0 / dist,
+                            lo: (-b - root) / (2.0 * a),
+                            hi: (-b + root) / (2.0 * a),
+                        });
                     }
                 }
             }
@@ -196,16 +226,8 @@ fn neighbourhoods(left: &[Edgel], radius: f32) -> Vec<Vec<(u32, f32)>> {
 
 /// Each live candidate's support from the live candidates around it (left edgels in `done`
 /// already have their match and keep their strength).
-fn support(
-    left: &[Edgel],
-    offsets: &[usize],
-    cands: &mut [Candidate],
-    neighbours: &[Vec<(u32, f32)>],
-    done: &[bool],
-    p: &PmfParams,
-) {
+fn support(left: &[Edgel], offsets: &[usize], cands: &mut [Candidate], neighbours: &[Vec<Neighbour>], done: &[bool]) {
     use rayon::prelude::*;
-    let limit_sq = p.disparity_gradient_limit * p.disparity_gradient_limit;
     let cands_now: &[Candidate] = cands;
     // Each left edgel's candidates' new strengths, computed in parallel (they only read).
     let strengths: Vec<Vec<f32>> = (0..left.len())
@@ -215,24 +237,15 @@ fn support(
             if done[l] {
                 return own.iter().map(|c| c.strength).collect();
             }
-            let (lx, ly) = (left[l].x, left[l].y);
             own.iter()
                 .map(|c| {
                     let d = c.disparity;
                     let mut total = 0.0;
-                    for &(n, dist) in &neighbours[l] {
-                        let o = &left[n as usize];
-                        let dy = o.y - ly;
-                        let theirs = &cands_now[offsets[n as usize]..offsets[n as usize + 1]];
-                        // Within the disparity-gradient limit, measured in the cyclopean image
-                        // (halfway between left and right), compared squared to spare the root.
-                        let supported = theirs.iter().any(|nc| {
-                            let dx = (o.x - nc.disparity / 2.0) - (lx - d / 2.0);
-                            let dd = nc.disparity - d;
-                            nc.alive && dd * dd <= limit_sq * (dx * dx + dy * dy)
-                        });
-                        if supported {
-                            total += 1.0 / dist;
+                    for nb in &neighbours[l] {
+                        let n = nb.edgel as usize;
+                        let theirs = &cands_now[offsets[n]..offsets[n + 1]];
+                        if theirs.iter().any(|nc| nc.alive && (nb.lo..=nb.hi).contains(&(nc.disparity - d))) {
+                            total += nb.weight;
                         }
                     }
                     total
