@@ -15,7 +15,10 @@ pub enum EvalTarget {
     /// JSON keys so far: `disparity_within_0_5px` and `wrong_matches` (fractions of matched
     /// edgels whose disparity is within 0.5 px of the true one / more than 2 px off; at an
     /// occluding boundary the true disparity is the nearer surface's), `matches_per_scene`,
-    /// `timings_ms` (median per stage). Line-level figures come with the line stages.
+    /// `endpoint_err_mm_median` and `_p90` (3D line ends from the nearest true feature edge),
+    /// `coverage` (of visible feature-edge length in pieces >= 20 px long in the image, the part
+    /// a 3D line runs along within 3 mm and 10 deg), `timings_ms` (median per stage: with slices,
+    /// each stage's processor time summed over the slices, then `slices` and `join` wall time).
     Vision {
         world: PathBuf,
         #[arg(long, default_value_t = 20)]

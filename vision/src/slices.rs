@@ -116,6 +116,8 @@ pub struct SliceResult {
     pub matches: Vec<Match>,
     pub lines2d: Vec<Line2>,
     pub lines3d: Vec<Line3>,
+    /// Time each stage took on this slice, milliseconds.
+    pub timings_ms: Vec<(&'static str, f64)>,
 }
 
 fn shift(edgels: &[Edgel], dy: usize) -> Vec<Edgel> {
@@ -130,22 +132,34 @@ pub fn run_slice(
     rect: &Rectification,
     params: &CannyParams,
 ) -> SliceResult {
+    let mut timings = Vec::new();
+    let mut clock = Instant::now();
+    let mut lap = |name: &'static str, timings: &mut Vec<(&'static str, f64)>| {
+        timings.push((name, clock.elapsed().as_secs_f64() * 1e3));
+        clock = Instant::now();
+    };
     let (lmap, lfrom) = canny_rows(left, &plan.left, params);
     let (rmap, rfrom) = canny_rows(right, &plan.right, params);
+    lap("canny", &mut timings);
     let strings = link_strings(&lmap, MIN_STRING);
+    lap("strings", &mut timings);
     let left_edgels = shift(&lmap.edgels, lfrom);
     let left_pixel = (0..lmap.edgels.len()).map(|i| lmap.pixel[i] as usize + lfrom * left.width).collect();
     let right_edgels = shift(&rmap.edgels, rfrom);
     let right_pixel = rmap.pixel.iter().map(|&p| p as usize + rfrom * right.width).collect();
     let left_rect = rect.rectify_edgels(Side::Left, &left_edgels);
     let right_rect = rect.rectify_edgels(Side::Right, &right_edgels);
+    lap("rectify", &mut timings);
     let (disparity_min, disparity_max) = disparity_range(rect, WORKSPACE_DEPTH_M.0, WORKSPACE_DEPTH_M.1);
     let pmf_params = PmfParams { disparity_min, disparity_max, ..PmfParams::default() };
     let matches = pmf(&left_rect, &right_rect, &strings, &pmf_params);
+    lap("pmf", &mut timings);
     let lines2d = fit_lines(&left_rect, &strings, &Lines2dParams::default());
+    lap("geom2d", &mut timings);
     let p3 = Lines3dParams::default();
     let mut lines3d = fit_lines3d(&lines2d, &strings, &left_rect, &matches, rect, &p3);
     complete_flat_lines(&lines2d, &strings, &mut lines3d, rect, &p3, 6);
+    lap("geom3d", &mut timings);
     SliceResult {
         plan: plan.clone(),
         left: left_edgels,
@@ -158,6 +172,7 @@ pub fn run_slice(
         matches,
         lines2d,
         lines3d,
+        timings_ms: timings,
     }
 }
 
@@ -176,7 +191,14 @@ pub fn run_sliced(
     let slices_ms = clock.elapsed().as_secs_f64() * 1e3;
     let clock = Instant::now();
     let mut fe = join(&slices, rect, left.width, left.height);
-    fe.timings_ms = vec![("slices", slices_ms), ("join", clock.elapsed().as_secs_f64() * 1e3)];
+    // Per stage, the processor time summed over the slices (they overlap in wall time); then
+    // the wall time of all slices and of the Joiner.
+    for (name, _) in &slices[0].timings_ms {
+        let total = slices.iter().flat_map(|s| &s.timings_ms).filter(|(n, _)| n == name).map(|(_, ms)| ms).sum();
+        fe.timings_ms.push((name, total));
+    }
+    fe.timings_ms.push(("slices", slices_ms));
+    fe.timings_ms.push(("join", clock.elapsed().as_secs_f64() * 1e3));
     fe
 }
 
