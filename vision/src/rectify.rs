@@ -137,10 +137,11 @@ fn apply(h: &Matrix3<f64>, x: f64, y: f64) -> (f64, f64) {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    fn verged_pair() -> StereoCalibration {
+    /// The default world's rig: 0.2 m baseline, 0.9 m from the origin, looking down 40 deg.
+    pub(crate) fn verged_pair() -> StereoCalibration {
         let cam = |x: f64| {
             PinholeCamera::looking_at(
                 (512, 512),

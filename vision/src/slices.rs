@@ -292,22 +292,8 @@ fn owns(s: &SliceResult, i: usize) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use mesh::PinholeCamera;
-    use nalgebra::{Point3, Vector3};
-
-    fn verged_pair() -> StereoCalibration {
-        let cam = |x: f64| {
-            PinholeCamera::looking_at(
-                (512, 512),
-                1000.0,
-                [255.5, 255.5],
-                Point3::new(x, -0.6894, 0.5785),
-                Point3::origin(),
-                Vector3::z(),
-            )
-        };
-        StereoCalibration { left: cam(-0.1), right: cam(0.1) }
-    }
+    use crate::rectify::tests::verged_pair;
+    use nalgebra::Point3;
 
     #[test]
     fn slices_cover_the_image_sharing_two_rasters() {
