@@ -10,6 +10,7 @@
 //! - [`lines3d`]: disparity fitted along each 2D line, its ends triangulated into 3D segments.
 //! - [`front_end`]: the stages above run in order on one stereo pair.
 //! - [`slices`]: the same cut into 8 horizontal slice pairs run in parallel, and the Joiner.
+//! - [`pose_fit`]: least-squares pose from 3D line correspondences (quaternion method).
 //!
 //! Still to come: the runtime of communicating processes, and the model matcher.
 
@@ -19,6 +20,7 @@ pub mod image;
 pub mod lines2d;
 pub mod lines3d;
 pub mod pmf;
+pub mod pose_fit;
 pub mod rectify;
 pub mod slices;
 pub mod strings;
