@@ -11,6 +11,8 @@
 //! - [`front_end`]: the stages above run in order on one stereo pair.
 //! - [`slices`]: the same cut into 8 horizontal slice pairs run in parallel, and the Joiner.
 //! - [`pose_fit`]: least-squares pose from 3D line correspondences (quaternion method).
+//! - [`matcher`]: the model matcher for one model (pairwise relations, focus features,
+//!   hypotheses ranked by support, refinement, verification).
 //!
 //! Still to come: the runtime of communicating processes, and the model matcher.
 
@@ -19,6 +21,7 @@ pub mod front_end;
 pub mod image;
 pub mod lines2d;
 pub mod lines3d;
+pub mod matcher;
 pub mod pmf;
 pub mod pose_fit;
 pub mod rectify;

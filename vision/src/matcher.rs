@@ -1,0 +1,402 @@
+//! The model matcher (Pollard, Porrill, Mayhew & Frisby, as TINA uses it), for one model.
+//!
+//! - The model is its wireframe: directed 3D segments, with the grasp positions of the library.
+//! - Pairwise relations (the angle between two lines and their perpendicular separation, as in
+//!   Grimson & Lozano-Perez's tables) are tabled once per model for the pairs that matter: each
+//!   focus line (the longest, most telling lines, in the manner of Bolles) with its feature group
+//!   (the lines not parallel to it).
+//! - Hypotheses: a scene pair congruent with a focus pair, within tolerances that let fragments
+//!   and partly seen lines qualify, gives a pose by least squares ([`crate::pose_fit`]).
+//! - Each hypothesis is ranked by the support its pose finds: the length of scene lines lying
+//!   along the transformed model lines. The best is refined on its supporting set and verified
+//!   (enough of the model seen, along enough lines) before it is reported; then the matcher looks
+//!   again, without the lines already explained, for further instances.
+//!
+//! Scene lines come from stereo with no particular direction, so each is used both ways round.
+
+use crate::pose_fit::{DirectionPair, PointOnLine, pose_from_lines};
+use nalgebra::{Isometry3, Point3, Vector3};
+use serde::{Deserialize, Serialize};
+
+/// A straight 3D segment with its unit direction and length.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Seg {
+    pub a: Point3<f64>,
+    pub b: Point3<f64>,
+    pub dir: Vector3<f64>,
+    pub len: f64,
+}
+
+impl Seg {
+    pub fn new(a: Point3<f64>, b: Point3<f64>) -> Seg {
+        let d = b - a;
+        let len = d.norm();
+        Seg { a, b, dir: d / len.max(1e-12), len }
+    }
+
+    pub fn transformed(&self, pose: &Isometry3<f64>) -> Seg {
+        Seg::new(pose * self.a, pose * self.b)
+    }
+}
+
+/// A model as the matcher sees it.
+#[derive(Debug, Clone)]
+pub struct MatcherModel {
+    pub name: String,
+    pub lines: Vec<Seg>,
+    /// Grasp positions: `model_from_gripper` and jaw opening (metres).
+    pub grasps: Vec<(Isometry3<f64>, f64)>,
+    pub total_length: f64,
+}
+
+impl MatcherModel {
+    pub fn from_model(m: &mesh::Model) -> MatcherModel {
+        let lines: Vec<Seg> = m.wireframe.iter().map(|s| Seg::new(s.a, s.b)).collect();
+        MatcherModel {
+            name: m.name.clone(),
+            total_length: lines.iter().map(|l| l.len).sum(),
+            grasps: m.grasps.iter().map(|g| (g.model_from_gripper, g.opening)).collect(),
+            lines,
+        }
+    }
+}
+
+/// The matcher's tolerances and limits.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct MatchParams {
+    /// Pair angles must agree within this (radians).
+    pub angle_tolerance: f64,
+    /// Pair separations must agree within this (metres).
+    pub separation_tolerance: f64,
+    /// A scene line supports a model line when both its ends lie within this distance of it
+    /// (metres) and it runs within `angle_tolerance` of it.
+    pub support_distance: f64,
+    /// Scene lines shorter than this do not seed hypotheses (metres).
+    pub min_seed_length: f64,
+    /// How many of the model's longest lines serve as focus features.
+    pub focus_lines: usize,
+    /// A located object must have this fraction of its wireframe length seen...
+    pub min_support_fraction: f64,
+    /// ...along at least this many model lines.
+    pub min_support_lines: usize,
+    /// Instances of one model sought at most.
+    pub max_instances: usize,
+}
+
+impl Default for MatchParams {
+    fn default() -> Self {
+        MatchParams {
+            angle_tolerance: 0.1,
+            separation_tolerance: 0.004,
+            support_distance: 0.003,
+            min_seed_length: 0.012,
+            focus_lines: 4,
+            min_support_fraction: 0.25,
+            min_support_lines: 3,
+            max_instances: 3,
+        }
+    }
+}
+
+/// One located instance of a model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Located {
+    pub model: String,
+    pub cam_from_model: Isometry3<f64>,
+    /// Matched scene length, metres, and as a fraction of the model's wireframe.
+    pub support: f64,
+    pub support_fraction: f64,
+    /// Indices of the scene lines that support it.
+    pub scene_lines: Vec<usize>,
+}
+
+/// Acute angle between two lines (directions up to sign).
+fn line_angle(u: &Vector3<f64>, v: &Vector3<f64>) -> f64 {
+    u.dot(v).abs().min(1.0).acos()
+}
+
+/// Distance between two infinite lines through `p` along `u` and `q` along `v`.
+fn separation(p: &Point3<f64>, u: &Vector3<f64>, q: &Point3<f64>, v: &Vector3<f64>) -> f64 {
+    let n = u.cross(v);
+    let s = n.norm();
+    if s < 1e-9 {
+        let w = q - p;
+        (w - u * w.dot(u)).norm()
+    } else {
+        (q - p).dot(&n).abs() / s
+    }
+}
+
+/// How a transformed model line and a scene line agree: the length of the scene line lying along
+/// the model segment (0 when they are not close and parallel).
+fn overlap(model: &Seg, scene: &Seg, p: &MatchParams) -> f64 {
+    if line_angle(&model.dir, &scene.dir) > p.angle_tolerance {
+        return 0.0;
+    }
+    let off = |x: &Point3<f64>| {
+        let w = x - model.a;
+        (w - model.dir * w.dot(&model.dir)).norm()
+    };
+    if off(&scene.a) > p.support_distance || off(&scene.b) > p.support_distance {
+        return 0.0;
+    }
+    let (ta, tb) = ((scene.a - model.a).dot(&model.dir), (scene.b - model.a).dot(&model.dir));
+    (ta.max(tb).min(model.len) - ta.min(tb).max(0.0)).max(0.0)
+}
+
+/// Support of a pose: per model line, the scene length along it (capped at its length), summed;
+/// with the (model line, scene line, overlap) correspondences behind it.
+fn support(
+    model: &MatcherModel,
+    pose: &Isometry3<f64>,
+    scene: &[Seg],
+    free: &[bool],
+    p: &MatchParams,
+) -> (f64, Vec<(usize, usize, f64)>) {
+    let mut total = 0.0;
+    let mut pairs = Vec::new();
+    for (i, ml) in model.lines.iter().enumerate() {
+        let t = ml.transformed(pose);
+        let mut along = 0.0;
+        for (j, sl) in scene.iter().enumerate().filter(|(j, _)| free[*j]) {
+            let o = overlap(&t, sl, p);
+            if o > 0.0 {
+                along += o;
+                pairs.push((i, j, o));
+            }
+        }
+        total += along.min(ml.len);
+    }
+    (total, pairs)
+}
+
+/// The pose from correspondences, directions signed to agree with `pose`.
+fn fit(
+    model: &MatcherModel,
+    scene: &[Seg],
+    pairs: &[(usize, usize, f64)],
+    pose: &Isometry3<f64>,
+) -> Option<Isometry3<f64>> {
+    let mut dirs = Vec::new();
+    let mut points = Vec::new();
+    for &(i, j, w) in pairs {
+        let (ml, sl) = (&model.lines[i], &scene[j]);
+        let sign = if (pose.rotation * ml.dir).dot(&sl.dir) >= 0.0 { 1.0 } else { -1.0 };
+        dirs.push(DirectionPair { model: ml.dir, scene: sl.dir * sign, weight: w });
+        for x in [sl.a, sl.b] {
+            points.push(PointOnLine { scene: x, model_point: ml.a, model_direction: ml.dir, weight: w });
+        }
+    }
+    pose_from_lines(&dirs, &points)
+}
+
+/// Focus lines (longest first) and, for each, its feature group: the lines not near-parallel.
+fn focus_pairs(model: &MatcherModel, p: &MatchParams) -> Vec<(usize, usize, f64, f64)> {
+    let mut order: Vec<usize> = (0..model.lines.len()).collect();
+    order.sort_by(|&a, &b| model.lines[b].len.total_cmp(&model.lines[a].len));
+    let mut out = Vec::new();
+    for &i in order.iter().take(p.focus_lines) {
+        for k in 0..model.lines.len() {
+            let (li, lk) = (&model.lines[i], &model.lines[k]);
+            let angle = line_angle(&li.dir, &lk.dir);
+            if k != i && angle > 0.35 {
+                out.push((i, k, angle, separation(&li.a, &li.dir, &lk.a, &lk.dir)));
+            }
+        }
+    }
+    out
+}
+
+/// Finds the instances of `model` among `scene` lines (in the `cam` frame).
+pub fn locate(model: &MatcherModel, scene: &[Seg], p: &MatchParams) -> Vec<Located> {
+    let focus = focus_pairs(model, p);
+    let mut free = vec![true; scene.len()];
+    let mut found = Vec::new();
+    for _ in 0..p.max_instances {
+        let Some(best) = best_hypothesis(model, scene, &free, &focus, p) else { break };
+        let (pose, score, pairs) = refine(model, scene, &free, best, p);
+        let lines_seen = {
+            let mut ls: Vec<usize> = pairs.iter().map(|&(i, ..)| i).collect();
+            ls.sort_unstable();
+            ls.dedup();
+            ls.len()
+        };
+        let fraction = score / model.total_length;
+        if fraction < p.min_support_fraction || lines_seen < p.min_support_lines {
+            break;
+        }
+        let mut used: Vec<usize> = pairs.iter().map(|&(_, j, _)| j).collect();
+        used.sort_unstable();
+        used.dedup();
+        for &j in &used {
+            free[j] = false;
+        }
+        found.push(Located {
+            model: model.name.clone(),
+            cam_from_model: pose,
+            support: score,
+            support_fraction: fraction,
+            scene_lines: used,
+        });
+    }
+    found
+}
+
+/// The best-supported pose among the hypotheses that congruent scene pairs give.
+fn best_hypothesis(
+    model: &MatcherModel,
+    scene: &[Seg],
+    free: &[bool],
+    focus: &[(usize, usize, f64, f64)],
+    p: &MatchParams,
+) -> Option<Isometry3<f64>> {
+    let seeds: Vec<usize> = (0..scene.len()).filter(|&j| free[j] && scene[j].len >= p.min_seed_length).collect();
+    let mut best: Option<(f64, Isometry3<f64>)> = None;
+    for &j in &seeds {
+        for &l in &seeds {
+            if j == l {
+                continue;
+            }
+            let (sj, sl) = (&scene[j], &scene[l]);
+            let angle = line_angle(&sj.dir, &sl.dir);
+            if angle < 0.3 {
+                continue;
+            }
+            let sep = separation(&sj.a, &sj.dir, &sl.a, &sl.dir);
+            for &(i, k, m_angle, m_sep) in focus {
+                if (angle - m_angle).abs() > p.angle_tolerance || (sep - m_sep).abs() > p.separation_tolerance {
+                    continue;
+                }
+                let (mi, mk) = (&model.lines[i], &model.lines[k]);
+                // The scene directions' signs: the model pair's cosine sign fixes one given the other.
+                let same = mi.dir.dot(&mk.dir) >= 0.0;
+                for sign_j in [1.0, -1.0] {
+                    let vj = sj.dir * sign_j;
+                    let vl = if (vj.dot(&sl.dir) >= 0.0) == same { sl.dir } else { -sl.dir };
+                    let dirs = [
+                        DirectionPair { model: mi.dir, scene: vj, weight: 1.0 },
+                        DirectionPair { model: mk.dir, scene: vl, weight: 1.0 },
+                    ];
+                    let points: Vec<PointOnLine> = [(sj, mi), (sl, mk)]
+                        .iter()
+                        .flat_map(|(s, m)| {
+                            [s.a, s.b].map(|x| PointOnLine {
+                                scene: x,
+                                model_point: m.a,
+                                model_direction: m.dir,
+                                weight: 1.0,
+                            })
+                        })
+                        .collect();
+                    let Some(pose) = pose_from_lines(&dirs, &points) else { continue };
+                    let (score, _) = support(model, &pose, scene, free, p);
+                    if best.is_none_or(|(b, _)| score > b) {
+                        best = Some((score, pose));
+                    }
+                }
+            }
+        }
+    }
+    best.map(|(_, pose)| pose)
+}
+
+/// Refits a pose on its supporting correspondences until the support stops growing.
+fn refine(
+    model: &MatcherModel,
+    scene: &[Seg],
+    free: &[bool],
+    mut pose: Isometry3<f64>,
+    p: &MatchParams,
+) -> (Isometry3<f64>, f64, Vec<(usize, usize, f64)>) {
+    let (mut score, mut pairs) = support(model, &pose, scene, free, p);
+    for _ in 0..5 {
+        let Some(next) = fit(model, scene, &pairs, &pose) else { break };
+        let (s, pr) = support(model, &next, scene, free, p);
+        if s + 1e-9 < score {
+            break;
+        }
+        let settled = (next.translation.vector - pose.translation.vector).norm() < 1e-6;
+        (pose, score, pairs) = (next, s, pr);
+        if settled {
+            break;
+        }
+    }
+    (pose, score, pairs)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Translation3, UnitQuaternion};
+
+    fn widget() -> MatcherModel {
+        let lib = mesh::Library::load_default().unwrap();
+        MatcherModel::from_model(lib.get("widget").unwrap())
+    }
+
+    /// A tiny deterministic generator, so the test needs no RNG crate.
+    struct Lcg(u64);
+    impl Lcg {
+        fn next(&mut self) -> f64 {
+            self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (self.0 >> 11) as f64 / (1u64 << 53) as f64
+        }
+        fn noise(&mut self, s: f64) -> Vector3<f64> {
+            Vector3::new(self.next() - 0.5, self.next() - 0.5, self.next() - 0.5) * 2.0 * s
+        }
+    }
+
+    /// The model's lines in the scene: half of them hidden, the rest cut to fragments, their ends
+    /// noised, some reversed, and random distractors added.
+    fn scene_of(model: &MatcherModel, pose: &Isometry3<f64>, rng: &mut Lcg) -> Vec<Seg> {
+        let mut scene = Vec::new();
+        for (k, l) in model.lines.iter().enumerate() {
+            if k % 2 == 1 {
+                continue; // hidden
+            }
+            let t = l.transformed(pose);
+            let (s0, s1) = (0.1 * rng.next(), 0.75 + 0.2 * rng.next());
+            let (a, b) = (t.a + (t.b - t.a) * s0 + rng.noise(2e-4), t.a + (t.b - t.a) * s1 + rng.noise(2e-4));
+            scene.push(if k % 3 == 0 { Seg::new(b, a) } else { Seg::new(a, b) });
+        }
+        for _ in 0..15 {
+            let a = Point3::from(pose.translation.vector + rng.noise(0.15));
+            scene.push(Seg::new(a, a + rng.noise(0.04)));
+        }
+        scene
+    }
+
+    #[test]
+    fn the_pose_comes_back_within_the_noise() {
+        let model = widget();
+        let mut rng = Lcg(7);
+        for (k, rpy) in [(0.0, 0.0, 0.3), (1.57, 0.0, -0.8), (0.4, 2.1, 1.0)].iter().enumerate() {
+            let pose = Isometry3::from_parts(
+                Translation3::new(0.03, -0.05, 0.85),
+                UnitQuaternion::from_euler_angles(rpy.0, rpy.1, rpy.2),
+            );
+            let scene = scene_of(&model, &pose, &mut rng);
+            let found = locate(&model, &scene, &MatchParams::default());
+            assert!(!found.is_empty(), "case {k}: not found");
+            let got = &found[0].cam_from_model;
+            let pos_err = (got.translation.vector - pose.translation.vector).norm();
+            let rot_err = got.rotation.angle_to(&pose.rotation);
+            assert!(pos_err < 1e-3, "case {k}: {:.2} mm off", pos_err * 1e3);
+            assert!(rot_err < 0.5f64.to_radians(), "case {k}: {:.2} deg off", rot_err.to_degrees());
+            assert_eq!(found.len(), 1, "case {k}: a second, false instance");
+        }
+    }
+
+    #[test]
+    fn a_scene_of_distractors_alone_yields_nothing() {
+        let model = widget();
+        let mut rng = Lcg(3);
+        let scene: Vec<Seg> = (0..40)
+            .map(|_| {
+                let a = Point3::new(0.0, 0.0, 0.9) + rng.noise(0.15);
+                Seg::new(a, a + rng.noise(0.05))
+            })
+            .collect();
+        assert!(locate(&model, &scene, &MatchParams::default()).is_empty());
+    }
+}
