@@ -127,6 +127,26 @@ fn separation(p: &Point3<f64>, u: &Vector3<f64>, q: &Point3<f64>, v: &Vector3<f6
     }
 }
 
+/// Where along each of two non-parallel lines (from `p` along `u`, from `q` along `v`) their
+/// closest approach falls.
+fn closest_params(p: &Point3<f64>, u: &Vector3<f64>, q: &Point3<f64>, v: &Vector3<f64>) -> (f64, f64) {
+    let w = p - q;
+    let (b, d, e) = (u.dot(v), u.dot(&w), v.dot(&w));
+    let den = 1.0 - b * b;
+    if den < 1e-12 {
+        return (0.0, 0.0);
+    }
+    ((b * e - d) / den, (e - b * d) / den)
+}
+
+/// Whether a fragment of length `frag` whose closest approach to its partner falls at `t` (from
+/// its start, in either sense) can lie on a model line of length `len` whose closest approach
+/// falls at `m`: the fragment is some stretch of the model line.
+fn fits_along(t: f64, frag: f64, m: f64, len: f64, tol: f64) -> bool {
+    let fits = |t: f64| t >= m - (len - frag) - tol && t <= m + tol;
+    frag <= len + tol && (fits(t) || fits(frag - t))
+}
+
 /// How a transformed model line and a scene line agree: the length of the scene line lying along
 /// the model segment (0 when they are not close and parallel).
 fn overlap(model: &Seg, scene: &Seg, p: &MatchParams) -> f64 {
@@ -157,8 +177,14 @@ fn support(
     let mut pairs = Vec::new();
     for (i, ml) in model.lines.iter().enumerate() {
         let t = ml.transformed(pose);
+        let mid = t.a + (t.b - t.a) * 0.5;
         let mut along = 0.0;
         for (j, sl) in scene.iter().enumerate().filter(|(j, _)| free[*j]) {
+            // Cheap rejection first: a supporting line lies within the model line's reach.
+            let reach = 0.5 * (t.len + sl.len) + p.support_distance;
+            if (sl.a + (sl.b - sl.a) * 0.5 - mid).norm_squared() > reach * reach {
+                continue;
+            }
             let o = overlap(&t, sl, p);
             if o > 0.0 {
                 along += o;
@@ -190,8 +216,20 @@ fn fit(
     pose_from_lines(&dirs, &points)
 }
 
+/// A focus line and one of its feature group, with their relations: angle, separation, and
+/// where along each their closest approach falls.
+#[derive(Debug, Clone, Copy)]
+struct FocusPair {
+    focus: usize,
+    partner: usize,
+    angle: f64,
+    separation: f64,
+    at_focus: f64,
+    at_partner: f64,
+}
+
 /// Focus lines (longest first) and, for each, its feature group: the lines not near-parallel.
-fn focus_pairs(model: &MatcherModel, p: &MatchParams) -> Vec<(usize, usize, f64, f64)> {
+fn focus_pairs(model: &MatcherModel, p: &MatchParams) -> Vec<FocusPair> {
     let mut order: Vec<usize> = (0..model.lines.len()).collect();
     order.sort_by(|&a, &b| model.lines[b].len.total_cmp(&model.lines[a].len));
     let mut out = Vec::new();
@@ -200,7 +238,9 @@ fn focus_pairs(model: &MatcherModel, p: &MatchParams) -> Vec<(usize, usize, f64,
             let (li, lk) = (&model.lines[i], &model.lines[k]);
             let angle = line_angle(&li.dir, &lk.dir);
             if k != i && angle > 0.35 {
-                out.push((i, k, angle, separation(&li.a, &li.dir, &lk.a, &lk.dir)));
+                let (at_focus, at_partner) = closest_params(&li.a, &li.dir, &lk.a, &lk.dir);
+                let separation = separation(&li.a, &li.dir, &lk.a, &lk.dir);
+                out.push(FocusPair { focus: i, partner: k, angle, separation, at_focus, at_partner });
             }
         }
     }
@@ -247,7 +287,7 @@ fn best_hypothesis(
     model: &MatcherModel,
     scene: &[Seg],
     free: &[bool],
-    focus: &[(usize, usize, f64, f64)],
+    focus: &[FocusPair],
     p: &MatchParams,
 ) -> Option<Isometry3<f64>> {
     let seeds: Vec<usize> = (0..scene.len()).filter(|&j| free[j] && scene[j].len >= p.min_seed_length).collect();
@@ -263,11 +303,20 @@ fn best_hypothesis(
                 continue;
             }
             let sep = separation(&sj.a, &sj.dir, &sl.a, &sl.dir);
-            for &(i, k, m_angle, m_sep) in focus {
-                if (angle - m_angle).abs() > p.angle_tolerance || (sep - m_sep).abs() > p.separation_tolerance {
+            let (tj, tl) = closest_params(&sj.a, &sj.dir, &sl.a, &sl.dir);
+            for f in focus {
+                if (angle - f.angle).abs() > p.angle_tolerance || (sep - f.separation).abs() > p.separation_tolerance {
                     continue;
                 }
-                let (mi, mk) = (&model.lines[i], &model.lines[k]);
+                let (mi, mk) = (&model.lines[f.focus], &model.lines[f.partner]);
+                // Each fragment must fit along its model line with the closest approach where the
+                // model has it (with slack for the ends stereo loses).
+                let slack = 4.0 * p.support_distance;
+                if !fits_along(tj, sj.len, f.at_focus, mi.len, slack)
+                    || !fits_along(tl, sl.len, f.at_partner, mk.len, slack)
+                {
+                    continue;
+                }
                 // The scene directions' signs: the model pair's cosine sign fixes one given the other.
                 let same = mi.dir.dot(&mk.dir) >= 0.0;
                 for sign_j in [1.0, -1.0] {
