@@ -182,3 +182,186 @@ fn visible(px: &nalgebra::Point2<f64>, z: f64, depth: &[f32], cam: &mesh::Pinhol
     }
     own && !occluded
 }
+
+/// The rotations that map a model onto itself (about its centre of mass): found by trying turns
+/// of 1/2, 1/3, 1/4 and 1/6 about its principal axes and keeping those that carry every
+/// wireframe edge onto an edge. Always holds the identity.
+pub fn symmetries(model: &mesh::Model) -> Vec<nalgebra::Isometry3<f64>> {
+    use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+    let c = model.mass.centre_of_mass;
+    let axes = model.mass.inertia.symmetric_eigen().eigenvectors;
+    let about = |r: UnitQuaternion<f64>| Translation3::from(c.coords) * r * Translation3::from(-c.coords);
+    let maps_onto_itself = |g: &Isometry3<f64>| {
+        model.wireframe.iter().all(|s| {
+            let (a, b) = (g * s.a, g * s.b);
+            model.wireframe.iter().any(|t| {
+                ((a - t.a).norm() < 1e-4 && (b - t.b).norm() < 1e-4)
+                    || ((a - t.b).norm() < 1e-4 && (b - t.a).norm() < 1e-4)
+            })
+        })
+    };
+    let mut out = vec![Isometry3::identity()];
+    for k in 0..3 {
+        let axis = nalgebra::Unit::new_normalize(Vector3::from(axes.column(k)));
+        for n in [2u32, 3, 4, 6] {
+            for m in 1..n {
+                let g = about(UnitQuaternion::from_axis_angle(&axis, std::f64::consts::TAU * m as f64 / n as f64));
+                let new = out.iter().all(|h| (h.to_homogeneous() - g.to_homogeneous()).norm() > 1e-6);
+                if new && maps_onto_itself(&g) {
+                    out.push(g);
+                }
+            }
+        }
+    }
+    // Products of the turns found (e.g. 180 deg about two axes give the third).
+    let found = out.clone();
+    for a in &found {
+        for b in &found {
+            let g = a * b;
+            if out.iter().all(|h| (h.to_homogeneous() - g.to_homogeneous()).norm() > 1e-6) && maps_onto_itself(&g) {
+                out.push(g);
+            }
+        }
+    }
+    out
+}
+
+/// Position (m, of the model origin) and rotation (rad) error of a located pose, the smallest
+/// over the model's symmetries.
+pub fn pose_error(
+    located: &nalgebra::Isometry3<f64>,
+    truth: &nalgebra::Isometry3<f64>,
+    symmetries: &[nalgebra::Isometry3<f64>],
+) -> (f64, f64) {
+    symmetries
+        .iter()
+        .map(|g| {
+            let t = truth * g;
+            ((located.translation.vector - t.translation.vector).norm(), located.rotation.angle_to(&t.rotation))
+        })
+        .fold((f64::MAX, f64::MAX), |best, e| if e.0 + 0.05 * e.1 < best.0 + 0.05 * best.1 { e } else { best })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn symmetry_groups_of_the_library() {
+        let lib = mesh::Library::load_default().unwrap();
+        let order = |name: &str| symmetries(lib.get(name).unwrap()).len();
+        assert_eq!(order("block"), 4, "a box: identity and three half turns");
+        assert_eq!(order("hex_prism"), 12, "a hexagonal prism: 6 turns about its axis, 6 flips");
+        assert_eq!(order("widget"), 1);
+        // Mirror-symmetric only (no proper rotation maps them onto themselves).
+        assert_eq!(order("wedge"), 1);
+        assert_eq!(order("l_bracket"), 1);
+        // Profiles symmetric about their y axis, extruded: a half turn about that axis.
+        assert_eq!(order("t_piece"), 2);
+        assert_eq!(order("u_channel"), 2);
+    }
+}
+
+/// How located objects compare with the truth.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct LocateStats {
+    /// Objects with at least 30% of their feature-edge length visible, and how many of those
+    /// were located.
+    pub eligible: usize,
+    pub located: usize,
+    /// All reports, and those matching no object (wrong place, wrong model, or a second report
+    /// of one object).
+    pub reports: usize,
+    pub false_positives: usize,
+    /// Errors of the correct reports (over the model's symmetries).
+    pub pos_err_mm: Vec<f64>,
+    pub rot_err_deg: Vec<f64>,
+}
+
+/// A report counts as correct within these.
+pub const CORRECT_POS_M: f64 = 0.01;
+pub const CORRECT_ROT_DEG: f64 = 5.0;
+
+impl LocateStats {
+    pub fn add(&mut self, o: &LocateStats) {
+        self.eligible += o.eligible;
+        self.located += o.located;
+        self.reports += o.reports;
+        self.false_positives += o.false_positives;
+        self.pos_err_mm.extend_from_slice(&o.pos_err_mm);
+        self.rot_err_deg.extend_from_slice(&o.rot_err_deg);
+    }
+}
+
+/// The `q` quantile of `v` (NaN when empty).
+pub fn quantile(v: &[f64], q: f64) -> f64 {
+    let mut v = v.to_vec();
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    v[((v.len() - 1) as f64 * q).round() as usize]
+}
+
+/// Fraction of an object's feature-edge length the left camera sees.
+fn visible_fraction(
+    model: &mesh::Model,
+    cam_from_model: &nalgebra::Isometry3<f64>,
+    cam: &mesh::PinholeCamera,
+    depth: &[f32],
+) -> f64 {
+    let (mut seen, mut all) = (0.0, 0.0);
+    for s in &model.wireframe {
+        let (a, b) = (cam_from_model * s.a, cam_from_model * s.b);
+        let steps = ((b - a).norm() / COVERAGE_STEP_M).ceil().max(1.0) as usize;
+        let step = (b - a).norm() / steps as f64;
+        for k in 0..steps {
+            let p = a + (b - a) * ((k as f64 + 0.5) / steps as f64);
+            all += step;
+            if cam.project_cam(&p).is_some_and(|q| visible(&q, p.z, depth, cam)) {
+                seen += step;
+            }
+        }
+    }
+    seen / all.max(1e-12)
+}
+
+/// Compares located objects (poses in the left camera's frame) with the scene's truth.
+pub fn locate_stats(
+    located: &[vision::matcher::Located],
+    scene: &sim::Scene,
+    library: &mesh::Library,
+    calib: &StereoCalibration,
+    left_depth: &[f32],
+    symmetry: &std::collections::BTreeMap<String, Vec<nalgebra::Isometry3<f64>>>,
+) -> LocateStats {
+    let cam = &calib.left;
+    let truths: Vec<(usize, nalgebra::Isometry3<f64>)> =
+        scene.objects.iter().enumerate().map(|(i, o)| (i, cam.cam_from_world() * o.world_from_model)).collect();
+    let eligible: Vec<bool> = scene
+        .objects
+        .iter()
+        .zip(&truths)
+        .map(|(o, (_, pose))| visible_fraction(&library.models[&o.model], pose, cam, left_depth) >= 0.3)
+        .collect();
+    let mut stats =
+        LocateStats { eligible: eligible.iter().filter(|e| **e).count(), reports: located.len(), ..Default::default() };
+    let mut taken = vec![false; scene.objects.len()];
+    for loc in located {
+        let best = truths
+            .iter()
+            .filter(|(i, _)| scene.objects[*i].model == loc.model && !taken[*i])
+            .map(|(i, pose)| (*i, pose_error(&loc.cam_from_model, pose, &symmetry[&loc.model])))
+            .min_by(|a, b| a.1.0.total_cmp(&b.1.0));
+        match best {
+            Some((i, (pos, rot))) if pos <= CORRECT_POS_M && rot.to_degrees() <= CORRECT_ROT_DEG => {
+                taken[i] = true;
+                stats.located += usize::from(eligible[i]);
+                stats.pos_err_mm.push(pos * 1e3);
+                stats.rot_err_deg.push(rot.to_degrees());
+            }
+            _ => stats.false_positives += 1,
+        }
+    }
+    stats
+}

@@ -282,6 +282,28 @@ pub fn locate(model: &MatcherModel, scene: &[Seg], p: &MatchParams) -> Vec<Locat
     found
 }
 
+/// Every model sought in the scene, each by its own matcher (in parallel, as MARVIN gave each
+/// model a virtual matcher of its own); where two reports explain mostly the same scene lines,
+/// the better supported one stands.
+pub fn locate_all(models: &[MatcherModel], scene: &[Seg], p: &MatchParams) -> Vec<Located> {
+    use rayon::prelude::*;
+    let mut all: Vec<Located> = models.par_iter().flat_map(|m| locate(m, scene, p)).collect();
+    all.sort_by(|a, b| b.support_fraction.total_cmp(&a.support_fraction));
+    let mut claimed = vec![false; scene.len()];
+    let mut kept = Vec::new();
+    for loc in all {
+        let shared = loc.scene_lines.iter().filter(|&&j| claimed[j]).count();
+        if shared * 10 > loc.scene_lines.len() * 3 {
+            continue; // over 30% of its evidence is another object's
+        }
+        for &j in &loc.scene_lines {
+            claimed[j] = true;
+        }
+        kept.push(loc);
+    }
+    kept
+}
+
 /// The best-supported pose among the hypotheses that congruent scene pairs give.
 fn best_hypothesis(
     model: &MatcherModel,
