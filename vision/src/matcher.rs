@@ -44,6 +44,9 @@ impl Seg {
 pub struct MatcherModel {
     pub name: String,
     pub lines: Vec<Seg>,
+    /// Outward normals of the faces meeting along each line: the line can be seen only from
+    /// where one of them faces the camera.
+    pub faces: Vec<Vec<Vector3<f64>>>,
     /// Grasp positions: `model_from_gripper` and jaw opening (metres).
     pub grasps: Vec<(Isometry3<f64>, f64)>,
     pub total_length: f64,
@@ -52,12 +55,48 @@ pub struct MatcherModel {
 impl MatcherModel {
     pub fn from_model(m: &mesh::Model) -> MatcherModel {
         let lines: Vec<Seg> = m.wireframe.iter().map(|s| Seg::new(s.a, s.b)).collect();
+        let faces = lines.iter().map(|l| faces_along(&m.mesh, l)).collect();
         MatcherModel {
             name: m.name.clone(),
+            faces,
             total_length: lines.iter().map(|l| l.len).sum(),
             grasps: m.grasps.iter().map(|g| (g.model_from_gripper, g.opening)).collect(),
             lines,
         }
+    }
+}
+
+/// Normals of the mesh faces that have an edge lying along `line`.
+fn faces_along(mesh: &mesh::TriMesh, line: &Seg) -> Vec<Vector3<f64>> {
+    let on_line = |p: &Point3<f64>| {
+        let w = p - line.a;
+        (w - line.dir * w.dot(&line.dir)).norm() < 1e-7
+    };
+    let mut normals: Vec<Vector3<f64>> = Vec::new();
+    for t in 0..mesh.triangles.len() {
+        let c = mesh.corners(t);
+        let along = (0..3).any(|k| on_line(&c[k]) && on_line(&c[(k + 1) % 3]));
+        let n = mesh.face_normal(t);
+        if along && normals.iter().all(|m| (m - n).norm() > 1e-6) {
+            normals.push(n);
+        }
+    }
+    normals
+}
+
+impl MatcherModel {
+    /// Wireframe length a camera at the origin could see with the model at `pose` (lines with a
+    /// face towards the camera; other objects may still hide them).
+    pub fn visible_length(&self, pose: &Isometry3<f64>) -> f64 {
+        self.lines
+            .iter()
+            .zip(&self.faces)
+            .filter(|(l, faces)| {
+                let mid = pose * (l.a + (l.b - l.a) * 0.5);
+                faces.is_empty() || faces.iter().any(|n| (pose.rotation * n).dot(&-mid.coords) > 0.0)
+            })
+            .map(|(l, _)| l.len)
+            .sum()
     }
 }
 
@@ -75,7 +114,9 @@ pub struct MatchParams {
     pub min_seed_length: f64,
     /// How many of the model's longest lines serve as focus features.
     pub focus_lines: usize,
-    /// A located object must have this fraction of its wireframe length seen...
+    /// A located object must have this fraction of its wireframe length seen (measured: as a
+    /// fraction of the length its pose turns towards the camera instead, every threshold found
+    /// fewer objects for the same false reports)...
     pub min_support_fraction: f64,
     /// ...along at least this many model lines.
     pub min_support_lines: usize,
@@ -103,7 +144,7 @@ impl Default for MatchParams {
 pub struct Located {
     pub model: String,
     pub cam_from_model: Isometry3<f64>,
-    /// Matched scene length, metres, and as a fraction of the model's wireframe.
+    /// Matched scene length, metres, and as a fraction of the model's wireframe length.
     pub support: f64,
     pub support_fraction: f64,
     /// Indices of the scene lines that support it.
@@ -162,6 +203,16 @@ fn overlap(model: &Seg, scene: &Seg, p: &MatchParams) -> f64 {
     }
     let (ta, tb) = ((scene.a - model.a).dot(&model.dir), (scene.b - model.a).dot(&model.dir));
     (ta.max(tb).min(model.len) - ta.min(tb).max(0.0)).max(0.0)
+}
+
+/// The support a given pose finds (matched scene length as a fraction of the wireframe, and
+/// the model lines seen), for diagnosis and evaluation.
+pub fn support_at(model: &MatcherModel, pose: &Isometry3<f64>, scene: &[Seg], p: &MatchParams) -> (f64, usize) {
+    let (score, pairs) = support(model, pose, scene, &vec![true; scene.len()], p);
+    let mut lines: Vec<usize> = pairs.iter().map(|&(i, ..)| i).collect();
+    lines.sort_unstable();
+    lines.dedup();
+    (score / model.total_length, lines.len())
 }
 
 /// Support of a pose: per model line, the scene length along it (capped at its length), summed;
