@@ -3,6 +3,7 @@
 mod bench;
 mod edges_cmd;
 mod eval_cmd;
+mod locate_cmd;
 mod render_cmd;
 mod stereo_cmd;
 
@@ -84,6 +85,22 @@ enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Render a scene, run the front end and the model matcher; list the located objects with
+    /// their errors against ground truth, the misses and the false reports.
+    Locate {
+        world: PathBuf,
+        /// Seed (default: the world file's).
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Only these models, comma-separated (default: every library model but the flag).
+        #[arg(long, value_delimiter = ',')]
+        models: Option<Vec<String>>,
+        #[arg(long)]
+        json: bool,
+        /// Folder for located.png: the located wireframes over the left image.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
     /// Run seeded scenes through the pipeline and compare with ground truth.
     Eval {
         #[command(subcommand)]
@@ -113,6 +130,9 @@ fn main() -> std::process::ExitCode {
         Command::Stereo { left, right, calib, rectified, disparity, slices, json, out } => {
             stereo_cmd::geometry(calib.as_deref(), rectified, disparity)
                 .and_then(|g| stereo_cmd::run(&left, &right, &g, slices as usize, json, out.as_deref()))
+        }
+        Command::Locate { world, seed, models, json, out } => {
+            locate_cmd::run(&world, seed, models, json, out.as_deref())
         }
         Command::Eval { what } => eval_cmd::run(what),
         Command::Bench { what } => bench::run(what),

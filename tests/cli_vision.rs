@@ -84,3 +84,21 @@ fn stereo_refuses_bad_input_and_says_which() {
         assert!(stderr.contains(&expected), "{all:?}: stderr {stderr} should mention {expected}");
     }
 }
+
+#[test]
+fn locate_reports_poses_grasps_and_misses() {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli_locate");
+    let out = marvin(&["locate", "worlds/widgets.toml", "--seed", "1", "--json", "--out", path(&dir)]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let located = doc["located"].as_array().unwrap();
+    assert!(located.iter().any(|l| l["correct"] == true), "nothing located correctly: {doc}");
+    for l in located {
+        assert!(l["cam_from_model"]["translation_m"].is_array());
+        assert!(l["grasp_cam_from_gripper"]["rotation_xyzw"].is_array());
+    }
+    assert!(doc["missed"].is_array());
+    assert!(dir.join("located.png").exists());
+    let bad = marvin(&["locate", "worlds/widgets.toml", "--models", "teapot"]);
+    assert!(!bad.status.success() && String::from_utf8_lossy(&bad.stderr).contains("teapot"));
+}

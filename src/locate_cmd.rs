@@ -1,0 +1,136 @@
+//! `marvin locate`: render a scene, run the front end and the matcher, and say how each report
+//! compares with the truth.
+
+use crate::eval_cmd::{matcher_models, run_pipeline};
+use anyhow::{Context, bail};
+use image::{Rgb, RgbImage};
+use marvin::eval::{CORRECT_POS_M, CORRECT_ROT_DEG, pose_error, symmetries};
+use nalgebra::Isometry3;
+use sim::Scenario;
+use std::path::Path;
+use vision::matcher::{MatchParams, Seg, locate_all};
+
+pub fn run(
+    world: &Path,
+    seed: Option<u64>,
+    models: Option<Vec<String>>,
+    json: bool,
+    out: Option<&Path>,
+) -> anyhow::Result<()> {
+    let scn = Scenario::load(world)?;
+    if let Some(names) = &models {
+        for n in names {
+            if scn.library.get(n).is_none() {
+                bail!(
+                    "--models: no model `{n}` in the library (it has: {})",
+                    scn.library.names().collect::<Vec<_>>().join(", ")
+                );
+            }
+        }
+    }
+    let seed = seed.unwrap_or(scn.world.seed);
+    let calib = sim::rig::calibration(&scn.world.cameras);
+    let p = run_pipeline(&scn, seed);
+    let lines: Vec<Seg> = p.front_end.lines3d.iter().map(|l| Seg::new(l.start(), l.end())).collect();
+    let sought = matcher_models(&scn.library, models.as_deref());
+    let located = locate_all(&sought, &lines, &MatchParams::default());
+    // Compare with the truth (evaluation only).
+    let truths: Vec<(String, Isometry3<f64>)> =
+        p.scene.objects.iter().map(|o| (o.model.clone(), calib.left.cam_from_world() * o.world_from_model)).collect();
+    let mut taken = vec![false; truths.len()];
+    let mut rows = Vec::new();
+    for loc in &located {
+        let sym = symmetries(&scn.library.models[&loc.model]);
+        let best = truths
+            .iter()
+            .enumerate()
+            .filter(|(i, (m, _))| *m == loc.model && !taken[*i])
+            .map(|(i, (_, t))| (i, pose_error(&loc.cam_from_model, t, &sym)))
+            .min_by(|a, b| a.1.0.total_cmp(&b.1.0));
+        let correct = best.is_some_and(|(_, (pos, rot))| pos <= CORRECT_POS_M && rot.to_degrees() <= CORRECT_ROT_DEG);
+        if let (true, Some((i, _))) = (correct, best) {
+            taken[i] = true;
+        }
+        let grasp = scn.library.models[&loc.model].grasps.first().map(|g| loc.cam_from_model * g.model_from_gripper);
+        rows.push(serde_json::json!({
+            "model": loc.model,
+            "cam_from_model": mesh::pose::PoseRecord::from(&loc.cam_from_model),
+            "grasp_cam_from_gripper": grasp.as_ref().map(mesh::pose::PoseRecord::from),
+            "support_fraction": loc.support_fraction,
+            "scene_lines": loc.scene_lines.len(),
+            "correct": correct,
+            "pos_err_mm": best.map(|(_, (pos, _))| pos * 1e3),
+            "rot_err_deg": best.map(|(_, (_, rot))| rot.to_degrees()),
+        }));
+    }
+    let sought_names: Vec<&str> = sought.iter().map(|m| m.name.as_str()).collect();
+    let missed: Vec<&str> = truths
+        .iter()
+        .enumerate()
+        .filter(|(i, (m, _))| !taken[*i] && sought_names.contains(&m.as_str()))
+        .map(|(_, (m, _))| m.as_str())
+        .collect();
+    if json {
+        crate::emit(&serde_json::json!({ "seed": seed, "located": rows, "missed": missed }).to_string())?;
+    } else {
+        for r in &rows {
+            crate::emit(&format!(
+                "{:10} support {:.2}  {}",
+                r["model"].as_str().unwrap_or("?"),
+                r["support_fraction"].as_f64().unwrap_or(0.0),
+                if r["correct"].as_bool() == Some(true) {
+                    format!(
+                        "ok: {:.2} mm, {:.2} deg",
+                        r["pos_err_mm"].as_f64().unwrap_or(f64::NAN),
+                        r["rot_err_deg"].as_f64().unwrap_or(f64::NAN)
+                    )
+                } else {
+                    "FALSE: no such object there".to_string()
+                }
+            ))?;
+        }
+        crate::emit(&format!("missed: {}", if missed.is_empty() { "none".to_string() } else { missed.join(", ") }))?;
+    }
+    if let Some(dir) = out {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        let path = dir.join("located.png");
+        draw(&p.left, &located, &scn, &calib.left)
+            .save(&path)
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok(())
+}
+
+/// The left image with each located model's wireframe drawn where the matcher put it.
+fn draw(
+    frame: &sim::render::Frame,
+    located: &[vision::matcher::Located],
+    scn: &Scenario,
+    cam: &mesh::PinholeCamera,
+) -> RgbImage {
+    let mut img = RgbImage::from_fn(frame.width as u32, frame.height as u32, |x, y| {
+        let g = frame.image[y as usize * frame.width + x as usize];
+        Rgb([g, g, g])
+    });
+    const COLOURS: [[u8; 3]; 6] =
+        [[255, 60, 60], [60, 255, 60], [80, 140, 255], [255, 220, 40], [255, 80, 255], [40, 230, 230]];
+    for (k, loc) in located.iter().enumerate() {
+        let colour = Rgb(COLOURS[k % COLOURS.len()]);
+        for s in &scn.library.models[&loc.model].wireframe {
+            let (Some(a), Some(b)) =
+                (cam.project_cam(&(loc.cam_from_model * s.a)), cam.project_cam(&(loc.cam_from_model * s.b)))
+            else {
+                continue;
+            };
+            let steps = (b - a).norm().ceil().max(1.0) as usize;
+            for i in 0..=steps {
+                let q = a + (b - a) * (i as f64 / steps as f64);
+                let (x, y) = (q.x.round(), q.y.round());
+                if x >= 0.0 && y >= 0.0 && (x as u32) < img.width() && (y as u32) < img.height() {
+                    img.put_pixel(x as u32, y as u32, colour);
+                }
+            }
+        }
+    }
+    img
+}
