@@ -154,13 +154,15 @@ fn run_locate(world: &std::path::Path, scenes: u64, seed: u64, json: bool) -> an
         scn.library.models.values().map(|m| (m.name.clone(), symmetries(m))).collect();
     let mut total = LocateStats::default();
     let mut match_ms = Vec::new();
+    let params = vision::matcher::MatchParams::default();
     for k in 0..scenes {
         let s = seed + k;
         let p = run_pipeline(&scn, s);
         let lines: Vec<vision::matcher::Seg> =
             p.front_end.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
         let clock = std::time::Instant::now();
-        let located = vision::matcher::locate_all(&models, &lines, &vision::matcher::MatchParams::default());
+        let evidence = vision::verify::ImageEvidence { cam: &calib.left, edges: &p.front_end.left };
+        let located = vision::matcher::locate_all(&models, &lines, &params, Some(&evidence));
         match_ms.push(clock.elapsed().as_secs_f64() * 1e3);
         let stats = locate_stats(&located, &p.scene, &scn.library, &calib, &p.left.depth, &symmetry);
         eprintln!(

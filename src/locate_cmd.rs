@@ -33,7 +33,8 @@ pub fn run(
     let p = run_pipeline(&scn, seed);
     let lines: Vec<Seg> = p.front_end.lines3d.iter().map(|l| Seg::new(l.start(), l.end())).collect();
     let sought = matcher_models(&scn.library, models.as_deref());
-    let located = locate_all(&sought, &lines, &MatchParams::default());
+    let evidence = vision::verify::ImageEvidence { cam: &calib.left, edges: &p.front_end.left };
+    let located = locate_all(&sought, &lines, &MatchParams::default(), Some(&evidence));
     // Compare with the truth (evaluation only).
     let truths: Vec<(String, Isometry3<f64>)> =
         p.scene.objects.iter().map(|o| (o.model.clone(), calib.left.cam_from_world() * o.world_from_model)).collect();
@@ -57,6 +58,7 @@ pub fn run(
             "cam_from_model": mesh::pose::PoseRecord::from(&loc.cam_from_model),
             "grasp_cam_from_gripper": grasp.as_ref().map(mesh::pose::PoseRecord::from),
             "support_fraction": loc.support_fraction,
+            "image_support": loc.image_support,
             "scene_lines": loc.scene_lines.len(),
             "correct": correct,
             "pos_err_mm": best.map(|(_, (pos, _))| pos * 1e3),

@@ -13,6 +13,7 @@
 //! - [`pose_fit`]: least-squares pose from 3D line correspondences (quaternion method).
 //! - [`matcher`]: the model matcher for one model (pairwise relations, focus features,
 //!   hypotheses ranked by support, refinement, verification).
+//! - [`verify`]: verification of a located model against the edgels of the left image.
 //!
 //! Still to come: the runtime of communicating processes, and the model matcher.
 
@@ -27,6 +28,7 @@ pub mod pose_fit;
 pub mod rectify;
 pub mod slices;
 pub mod strings;
+pub mod verify;
 
 pub use canny::{CannyParams, EdgeMap, Edgel, canny};
 pub use image::GreyImage;

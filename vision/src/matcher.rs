@@ -85,6 +85,14 @@ fn faces_along(mesh: &mesh::TriMesh, line: &Seg) -> Vec<Vector3<f64>> {
 }
 
 impl MatcherModel {
+    /// Centre (mean of the line ends) and radius of a sphere holding the wireframe.
+    pub fn bounding_sphere(&self) -> (Point3<f64>, f64) {
+        let n = (2 * self.lines.len()).max(1) as f64;
+        let c = Point3::from(self.lines.iter().map(|l| l.a.coords + l.b.coords).sum::<Vector3<f64>>() / n);
+        let r = self.lines.iter().flat_map(|l| [l.a, l.b]).map(|p| (p - c).norm()).fold(0.0, f64::max);
+        (c, r)
+    }
+
     /// Wireframe length a camera at the origin could see with the model at `pose` (lines with a
     /// face towards the camera; other objects may still hide them).
     pub fn visible_length(&self, pose: &Isometry3<f64>) -> f64 {
@@ -122,6 +130,9 @@ pub struct MatchParams {
     pub min_support_lines: usize,
     /// Instances of one model sought at most.
     pub max_instances: usize,
+    /// With the image at hand, a located object's camera-facing wireframe must run along
+    /// edgels for at least this fraction of its length.
+    pub min_image_support: f64,
 }
 
 impl Default for MatchParams {
@@ -132,9 +143,10 @@ impl Default for MatchParams {
             support_distance: 0.003,
             min_seed_length: 0.012,
             focus_lines: 4,
-            min_support_fraction: 0.25,
+            min_support_fraction: 0.15,
             min_support_lines: 3,
             max_instances: 3,
+            min_image_support: 0.6,
         }
     }
 }
@@ -149,6 +161,9 @@ pub struct Located {
     pub support_fraction: f64,
     /// Indices of the scene lines that support it.
     pub scene_lines: Vec<usize>,
+    /// Fraction of its camera-facing wireframe that runs along edgels in the left image (1 when
+    /// not verified in the image).
+    pub image_support: f64,
 }
 
 /// Acute angle between two lines (directions up to sign).
@@ -328,6 +343,7 @@ pub fn locate(model: &MatcherModel, scene: &[Seg], p: &MatchParams) -> Vec<Locat
             support: score,
             support_fraction: fraction,
             scene_lines: used,
+            image_support: 1.0,
         });
     }
     found
@@ -336,16 +352,47 @@ pub fn locate(model: &MatcherModel, scene: &[Seg], p: &MatchParams) -> Vec<Locat
 /// Every model sought in the scene, each by its own matcher (in parallel, as MARVIN gave each
 /// model a virtual matcher of its own); where two reports explain mostly the same scene lines,
 /// the better supported one stands.
-pub fn locate_all(models: &[MatcherModel], scene: &[Seg], p: &MatchParams) -> Vec<Located> {
+pub fn locate_all(
+    models: &[MatcherModel],
+    scene: &[Seg],
+    p: &MatchParams,
+    image: Option<&crate::verify::ImageEvidence>,
+) -> Vec<Located> {
     use rayon::prelude::*;
-    let mut all: Vec<Located> = models.par_iter().flat_map(|m| locate(m, scene, p)).collect();
-    all.sort_by(|a, b| b.support_fraction.total_cmp(&a.support_fraction));
+    let mut all: Vec<Located> = models
+        .par_iter()
+        .flat_map(|m| {
+            let mut found = locate(m, scene, p);
+            if let Some(ev) = image {
+                for loc in &mut found {
+                    loc.image_support = crate::verify::image_support(m, &loc.cam_from_model, ev);
+                }
+                found.retain(|loc| loc.image_support >= p.min_image_support);
+            }
+            found
+        })
+        .collect();
+    let score = |l: &Located| l.support_fraction * l.image_support;
+    all.sort_by(|a, b| score(b).total_cmp(&score(a)));
     let mut claimed = vec![false; scene.len()];
-    let mut kept = Vec::new();
+    let mut kept: Vec<Located> = Vec::new();
+    let extent = |name: &str| {
+        models.iter().find(|m| m.name == name).map_or((nalgebra::Point3::origin(), 0.0), |m| m.bounding_sphere())
+    };
     for loc in all {
         let shared = loc.scene_lines.iter().filter(|&&j| claimed[j]).count();
         if shared * 10 > loc.scene_lines.len() * 3 {
             continue; // over 30% of its evidence is another object's
+        }
+        // Solids cannot share space: a report whose bulk sits inside a better one's goes.
+        let (c, r) = extent(&loc.model);
+        let centre = loc.cam_from_model * c;
+        let crowded = kept.iter().any(|k| {
+            let (kc, kr) = extent(&k.model);
+            (k.cam_from_model * kc - centre).norm() < 0.3 * (r + kr)
+        });
+        if crowded {
+            continue;
         }
         for &j in &loc.scene_lines {
             claimed[j] = true;
