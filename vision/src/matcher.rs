@@ -314,37 +314,48 @@ fn focus_pairs(model: &MatcherModel, p: &MatchParams) -> Vec<FocusPair> {
 }
 
 /// Finds the instances of `model` among `scene` lines (in the `cam` frame).
-pub fn locate(model: &MatcherModel, scene: &[Seg], p: &MatchParams) -> Vec<Located> {
+pub fn locate(
+    model: &MatcherModel,
+    scene: &[Seg],
+    p: &MatchParams,
+    image: Option<&crate::verify::ImageEvidence>,
+) -> Vec<Located> {
     let focus = focus_pairs(model, p);
     let mut free = vec![true; scene.len()];
     let mut found = Vec::new();
-    for _ in 0..p.max_instances {
-        let Some(best) = best_hypothesis(model, scene, &free, &focus, p) else { break };
-        let (pose, score, pairs) = refine(model, scene, &free, best, p);
-        let lines_seen = {
-            let mut ls: Vec<usize> = pairs.iter().map(|&(i, ..)| i).collect();
-            ls.sort_unstable();
-            ls.dedup();
-            ls.len()
-        };
-        let fraction = score / model.total_length;
-        if fraction < p.min_support_fraction || lines_seen < p.min_support_lines {
-            break;
+    'instances: for _ in 0..p.max_instances {
+        // The best hypotheses in turn: the first that survives refinement and verification is
+        // the next instance.
+        for start in best_hypotheses(model, scene, &free, &focus, p) {
+            let (pose, score, pairs) = refine(model, scene, &free, start, p);
+            let mut lines_seen: Vec<usize> = pairs.iter().map(|&(i, ..)| i).collect();
+            lines_seen.sort_unstable();
+            lines_seen.dedup();
+            let fraction = score / model.total_length;
+            if fraction < p.min_support_fraction || lines_seen.len() < p.min_support_lines {
+                continue;
+            }
+            let image_support = image.map_or(1.0, |ev| crate::verify::image_support(model, &pose, ev));
+            if image_support < p.min_image_support {
+                continue;
+            }
+            let mut used: Vec<usize> = pairs.iter().map(|&(_, j, _)| j).collect();
+            used.sort_unstable();
+            used.dedup();
+            for &j in &used {
+                free[j] = false;
+            }
+            found.push(Located {
+                model: model.name.clone(),
+                cam_from_model: pose,
+                support: score,
+                support_fraction: fraction,
+                scene_lines: used,
+                image_support,
+            });
+            continue 'instances;
         }
-        let mut used: Vec<usize> = pairs.iter().map(|&(_, j, _)| j).collect();
-        used.sort_unstable();
-        used.dedup();
-        for &j in &used {
-            free[j] = false;
-        }
-        found.push(Located {
-            model: model.name.clone(),
-            cam_from_model: pose,
-            support: score,
-            support_fraction: fraction,
-            scene_lines: used,
-            image_support: 1.0,
-        });
+        break;
     }
     found
 }
@@ -361,18 +372,9 @@ pub fn locate_all(
     use rayon::prelude::*;
     let mut all: Vec<Located> = models
         .par_iter()
-        .flat_map(|m| {
-            let mut found = locate(m, scene, p);
-            if let Some(ev) = image {
-                for loc in &mut found {
-                    loc.image_support = crate::verify::image_support(m, &loc.cam_from_model, ev);
-                }
-                found.retain(|loc| loc.image_support >= p.min_image_support);
-            }
-            found
-        })
+        .flat_map(|m| locate(m, scene, p, image))
         .collect();
-    let score = |l: &Located| l.support_fraction * l.image_support;
+    let score = |l: &Located| l.support * l.image_support;
     all.sort_by(|a, b| score(b).total_cmp(&score(a)));
     let mut claimed = vec![false; scene.len()];
     let mut kept: Vec<Located> = Vec::new();
@@ -402,16 +404,17 @@ pub fn locate_all(
     kept
 }
 
-/// The best-supported pose among the hypotheses that congruent scene pairs give.
-fn best_hypothesis(
+/// The best-supported poses (up to `HYPOTHESES`, no two alike) among the hypotheses that
+/// congruent scene pairs give, best first.
+fn best_hypotheses(
     model: &MatcherModel,
     scene: &[Seg],
     free: &[bool],
     focus: &[FocusPair],
     p: &MatchParams,
-) -> Option<Isometry3<f64>> {
+) -> Vec<Isometry3<f64>> {
     let seeds: Vec<usize> = (0..scene.len()).filter(|&j| free[j] && scene[j].len >= p.min_seed_length).collect();
-    let mut best: Option<(f64, Isometry3<f64>)> = None;
+    let mut best: Vec<(f64, Isometry3<f64>)> = Vec::new();
     for &j in &seeds {
         for &l in &seeds {
             if j == l {
@@ -459,14 +462,35 @@ fn best_hypothesis(
                         .collect();
                     let Some(pose) = pose_from_lines(&dirs, &points) else { continue };
                     let (score, _) = support(model, &pose, scene, free, p);
-                    if best.is_none_or(|(b, _)| score > b) {
-                        best = Some((score, pose));
-                    }
+                    keep_best(&mut best, score, pose);
                 }
             }
         }
     }
-    best.map(|(_, pose)| pose)
+    best.into_iter().map(|(_, pose)| pose).collect()
+}
+
+/// Hypotheses kept for verification per search.
+const HYPOTHESES: usize = 6;
+
+/// Keeps the `HYPOTHESES` best-scored poses, a pose near a kept one (within 5 mm and 5 deg)
+/// replacing it only if it scores better.
+fn keep_best(best: &mut Vec<(f64, Isometry3<f64>)>, score: f64, pose: Isometry3<f64>) {
+    if best.len() == HYPOTHESES && best.last().is_some_and(|(s, _)| score <= *s) {
+        return;
+    }
+    let alike = |q: &Isometry3<f64>| {
+        (q.translation.vector - pose.translation.vector).norm() < 0.005 && q.rotation.angle_to(&pose.rotation) < 0.087
+    };
+    if let Some(k) = best.iter().position(|(_, q)| alike(q)) {
+        if best[k].0 >= score {
+            return;
+        }
+        best.remove(k);
+    }
+    let at = best.iter().position(|(s, _)| *s < score).unwrap_or(best.len());
+    best.insert(at, (score, pose));
+    best.truncate(HYPOTHESES);
 }
 
 /// Refits a pose on its supporting correspondences until the support stops growing.
@@ -545,7 +569,7 @@ mod tests {
                 UnitQuaternion::from_euler_angles(rpy.0, rpy.1, rpy.2),
             );
             let scene = scene_of(&model, &pose, &mut rng);
-            let found = locate(&model, &scene, &MatchParams::default());
+            let found = locate(&model, &scene, &MatchParams::default(), None);
             assert!(!found.is_empty(), "case {k}: not found");
             let got = &found[0].cam_from_model;
             let pos_err = (got.translation.vector - pose.translation.vector).norm();
@@ -566,6 +590,6 @@ mod tests {
                 Seg::new(a, a + rng.noise(0.05))
             })
             .collect();
-        assert!(locate(&model, &scene, &MatchParams::default()).is_empty());
+        assert!(locate(&model, &scene, &MatchParams::default(), None).is_empty());
     }
 }
