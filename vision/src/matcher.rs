@@ -370,10 +370,7 @@ pub fn locate_all(
     image: Option<&crate::verify::ImageEvidence>,
 ) -> Vec<Located> {
     use rayon::prelude::*;
-    let mut all: Vec<Located> = models
-        .par_iter()
-        .flat_map(|m| locate(m, scene, p, image))
-        .collect();
+    let mut all: Vec<Located> = models.par_iter().flat_map(|m| locate(m, scene, p, image)).collect();
     let score = |l: &Located| l.support * l.image_support;
     all.sort_by(|a, b| score(b).total_cmp(&score(a)));
     let mut claimed = vec![false; scene.len()];
