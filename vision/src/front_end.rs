@@ -56,6 +56,25 @@ pub enum Geometry {
     Rectified { disparity_min: f32, disparity_max: f32 },
 }
 
+/// Times consecutive stages.
+pub struct Stopwatch {
+    clock: Instant,
+    /// Each stage's name and milliseconds, in order.
+    pub laps: Vec<(&'static str, f64)>,
+}
+
+impl Stopwatch {
+    pub fn start() -> Stopwatch {
+        Stopwatch { clock: Instant::now(), laps: Vec::new() }
+    }
+
+    /// Ends stage `name` (and starts the next).
+    pub fn lap(&mut self, name: &'static str) {
+        self.laps.push((name, self.clock.elapsed().as_secs_f64() * 1e3));
+        self.clock = Instant::now();
+    }
+}
+
 /// Depths (metres, along the rectified axis) the calibrated front end searches: MARVIN's
 /// workspace, a table 0.6 to 1.6 m from the cameras.
 pub const WORKSPACE_DEPTH_M: (f64, f64) = (0.6, 1.6);
@@ -67,16 +86,11 @@ pub fn run(left: &GreyImage, right: &GreyImage, calib: &StereoCalibration, canny
 
 /// The front end: Canny on both images, strings of the left, rectification, PMF.
 pub fn run_with(left: &GreyImage, right: &GreyImage, geometry: &Geometry, canny_params: &CannyParams) -> FrontEnd {
-    let mut timings_ms = Vec::new();
-    let mut clock = Instant::now();
-    let mut lap = |name: &'static str, timings: &mut Vec<(&'static str, f64)>| {
-        timings.push((name, clock.elapsed().as_secs_f64() * 1e3));
-        clock = Instant::now();
-    };
+    let mut watch = Stopwatch::start();
     let (l, r) = rayon::join(|| canny_reusing(left, canny_params), || canny_reusing(right, canny_params));
-    lap("canny", &mut timings_ms);
+    watch.lap("canny");
     let left_strings = link_strings(&l, MIN_STRING);
-    lap("strings", &mut timings_ms);
+    watch.lap("strings");
     let rect = match geometry {
         Geometry::Calibrated(calib) => Some(Rectification::new(calib)),
         Geometry::Rectified { .. } => None,
@@ -92,19 +106,19 @@ pub fn run_with(left: &GreyImage, right: &GreyImage, geometry: &Geometry, canny_
         }
         (None, Geometry::Calibrated(_)) => unreachable!("a calibrated pair has a rectification"),
     };
-    lap("rectify", &mut timings_ms);
+    watch.lap("rectify");
     let params = PmfParams { disparity_min, disparity_max, ..PmfParams::default() };
     let matches = pmf(&left_rectified, &right_rectified, &left_strings, &params);
-    lap("pmf", &mut timings_ms);
+    watch.lap("pmf");
     let lines2d = fit_lines(&left_rectified, &left_strings, &Lines2dParams::default());
-    lap("geom2d", &mut timings_ms);
+    watch.lap("geom2d");
     let lines3d = rect.as_ref().map_or_else(Vec::new, |rect| {
         let p = Lines3dParams::default();
         let mut lines3d = fit_lines3d(&lines2d, &left_strings, &left_rectified, &matches, rect, &p);
         complete_flat_lines(&lines2d, &left_strings, &mut lines3d, rect, &p, 6);
         lines3d
     });
-    lap("geom3d", &mut timings_ms);
+    watch.lap("geom3d");
     // What the front end vouches for: the matches that lie on a 3D line and agree with it.
     // Matches off every line (near corners, on short or flat strings, isolated) are dropped.
     let mut matches = matches;
@@ -127,7 +141,7 @@ pub fn run_with(left: &GreyImage, right: &GreyImage, geometry: &Geometry, canny_
         lines2d,
         lines3d,
         rect,
-        timings_ms,
+        timings_ms: watch.laps,
     }
 }
 

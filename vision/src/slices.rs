@@ -15,7 +15,7 @@
 //! left slice and offset from it.
 
 use crate::canny::{CannyParams, CannyWorkspace, EdgeMap, Edgel};
-use crate::front_end::{FrontEnd, MIN_STRING, WORKSPACE_DEPTH_M, disparity_range};
+use crate::front_end::{FrontEnd, MIN_STRING, Stopwatch, WORKSPACE_DEPTH_M, disparity_range};
 use crate::image::GreyImage;
 use crate::lines2d::{Line2, Lines2dParams, fit_lines};
 use crate::lines3d::{Line3, Lines3dParams, complete_flat_lines, fit_lines3d};
@@ -132,34 +132,29 @@ pub fn run_slice(
     rect: &Rectification,
     params: &CannyParams,
 ) -> SliceResult {
-    let mut timings = Vec::new();
-    let mut clock = Instant::now();
-    let mut lap = |name: &'static str, timings: &mut Vec<(&'static str, f64)>| {
-        timings.push((name, clock.elapsed().as_secs_f64() * 1e3));
-        clock = Instant::now();
-    };
+    let mut watch = Stopwatch::start();
     let (lmap, lfrom) = canny_rows(left, &plan.left, params);
     let (rmap, rfrom) = canny_rows(right, &plan.right, params);
-    lap("canny", &mut timings);
+    watch.lap("canny");
     let strings = link_strings(&lmap, MIN_STRING);
-    lap("strings", &mut timings);
+    watch.lap("strings");
     let left_edgels = shift(&lmap.edgels, lfrom);
     let left_pixel = (0..lmap.edgels.len()).map(|i| lmap.pixel[i] as usize + lfrom * left.width).collect();
     let right_edgels = shift(&rmap.edgels, rfrom);
     let right_pixel = rmap.pixel.iter().map(|&p| p as usize + rfrom * right.width).collect();
     let left_rect = rect.rectify_edgels(Side::Left, &left_edgels);
     let right_rect = rect.rectify_edgels(Side::Right, &right_edgels);
-    lap("rectify", &mut timings);
+    watch.lap("rectify");
     let (disparity_min, disparity_max) = disparity_range(rect, WORKSPACE_DEPTH_M.0, WORKSPACE_DEPTH_M.1);
     let pmf_params = PmfParams { disparity_min, disparity_max, ..PmfParams::default() };
     let matches = pmf(&left_rect, &right_rect, &strings, &pmf_params);
-    lap("pmf", &mut timings);
+    watch.lap("pmf");
     let lines2d = fit_lines(&left_rect, &strings, &Lines2dParams::default());
-    lap("geom2d", &mut timings);
+    watch.lap("geom2d");
     let p3 = Lines3dParams::default();
     let mut lines3d = fit_lines3d(&lines2d, &strings, &left_rect, &matches, rect, &p3);
     complete_flat_lines(&lines2d, &strings, &mut lines3d, rect, &p3, 6);
-    lap("geom3d", &mut timings);
+    watch.lap("geom3d");
     SliceResult {
         plan: plan.clone(),
         left: left_edgels,
@@ -172,7 +167,7 @@ pub fn run_slice(
         matches,
         lines2d,
         lines3d,
-        timings_ms: timings,
+        timings_ms: watch.laps,
     }
 }
 
