@@ -1,4 +1,14 @@
-//! The UMI-style arm: kinematics from the URDF, trajectories, path planning, and the
-//! kinematics/path server with its protocol.
+//! The UMI-style arm, without any simulation: what the kinematics/path server knows.
 //!
-//! Not built yet: the arm issue fills this crate. It depends on neither `sim` nor `vision`.
+//! - [`arm`]: the arm from its URDF (links, collision primitives, joints and limits) and forward
+//!   kinematics over the link tree.
+//! - [`ik`]: the closed-form inverse kinematics (both elbow solutions, both wrist-pitch signs,
+//!   limits respected; an unreachable pose is an error that says why).
+//!
+//! It depends on neither `sim` nor `vision`.
+
+pub mod arm;
+pub mod ik;
+
+pub use arm::{Arm, ArmError, Joints};
+pub use ik::{Ik, IkError};
