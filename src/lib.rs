@@ -4,7 +4,10 @@
 //!   evaluations call it.
 //! - [`truth`]: ground truth for evaluation only: exact ray casts into a settled scene.
 //! - [`eval`]: the front end's results against that truth.
+//! - [`pick`]: physical pick and place: the arm in the rapier cell, plans executed by its
+//!   motors, outcomes judged from the physics.
 
 pub mod eval;
+pub mod pick;
 pub use vision::front_end;
 pub mod truth;

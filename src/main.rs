@@ -4,6 +4,7 @@ mod bench;
 mod edges_cmd;
 mod eval_cmd;
 mod locate_cmd;
+mod pick_cmd;
 mod render_cmd;
 mod stereo_cmd;
 
@@ -101,6 +102,20 @@ enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Settle a scene and pick one object with the simulated arm, planned from the object's true
+    /// pose, into the first bin; reports `placed` or what went wrong (`unplanned`, `miss`,
+    /// `slip`, `drop`, `outside bin`), judged from the physics.
+    Pick {
+        world: PathBuf,
+        /// The object's id (1-based, as in scene.json).
+        #[arg(long)]
+        object: u32,
+        /// Seed (default: the world file's).
+        #[arg(long)]
+        seed: Option<u64>,
+        #[arg(long)]
+        json: bool,
+    },
     /// Run seeded scenes through the pipeline and compare with ground truth.
     Eval {
         #[command(subcommand)]
@@ -134,6 +149,7 @@ fn main() -> std::process::ExitCode {
         Command::Locate { world, seed, models, json, out } => {
             locate_cmd::run(&world, seed, models, json, out.as_deref())
         }
+        Command::Pick { world, object, seed, json } => pick_cmd::run(&world, object, seed, json),
         Command::Eval { what } => eval_cmd::run(what),
         Command::Bench { what } => bench::run(what),
     };

@@ -9,6 +9,9 @@
 
 pub mod arm;
 pub mod ik;
+pub mod pick;
+pub mod planner;
+pub mod trajectory;
 
 pub use arm::{Arm, ArmError, Joints};
 pub use ik::{Ik, IkError};

@@ -8,10 +8,12 @@
 //! - [`render`]: the CPU renderer: anti-aliased, shaded, noisy 8-bit grey images, with depth
 //!   and object-id maps.
 //! - [`record`]: `scene.json`, the calibration and ground truth written next to the images.
+//! - [`arm`]: the URDF arm as a motor-driven multibody with force-limited fingers.
 //! - [`convert`]: nalgebra <-> rapier (glam) conversions, kept in one place.
 //!
 //! Frames: `world` has its origin at the centre of the table top, `z` up.
 
+pub mod arm;
 pub mod convert;
 pub mod physics;
 pub mod record;

@@ -1,6 +1,7 @@
 //! A scenario (world file + model library) turned into a settled scene: static boxes (floor,
 //! table, bins) and objects at rest, with their ground-truth poses.
 
+use crate::arm::{HOME, SimArm};
 use crate::physics::{Cell, SettleReport};
 use crate::world::{WorldError, WorldFile};
 use mesh::{Library, TriMesh};
@@ -15,6 +16,8 @@ pub struct Scenario {
     pub path: PathBuf,
     pub world: WorldFile,
     pub library: Library,
+    /// The arm's URDF, when the world has a robot: it stands in the cell while objects settle.
+    pub robot_urdf: Option<PathBuf>,
 }
 
 /// Why a scenario could not be loaded.
@@ -33,7 +36,8 @@ impl Scenario {
         let text = std::fs::read_to_string(path)
             .map_err(|cause| WorldError::Io { file: path.display().to_string(), cause })?;
         world.check_models(&library, &text, &path.display().to_string())?;
-        Ok(Scenario { path: path.to_path_buf(), world, library })
+        let robot_urdf = world.robot_urdf(path, &text)?;
+        Ok(Scenario { path: path.to_path_buf(), world, library, robot_urdf })
     }
 }
 
@@ -131,6 +135,10 @@ impl Scene {
         let objects = initial_poses(scn, drop_seed);
         let statics = static_boxes(&scn.world);
         let mut cell = Cell::new(&scn.world.physics, &statics);
+        if let (Some(urdf), Some(spec)) = (&scn.robot_urdf, &scn.world.robot) {
+            // Objects that roll up to the arm rest against it, not inside it.
+            SimArm::insert(&mut cell, urdf, &spec.world_from_base(), &HOME, 0.0).expect("the URDF was checked on loading");
+        }
         let bodies: Vec<_> =
             objects.iter().map(|o| cell.add_object(&scn.library.models[&o.model], &o.world_from_model)).collect();
         let settle = cell.settle(scn.world.physics.settle_limit_s);

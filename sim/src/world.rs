@@ -184,6 +184,17 @@ pub struct RobotSpec {
     pub base_yaw_deg: f64,
 }
 
+impl RobotSpec {
+    /// Where the arm's base stands: `world_from_base`.
+    pub fn world_from_base(&self) -> nalgebra::Isometry3<f64> {
+        let [x, y, z] = self.base_position_m;
+        nalgebra::Isometry3::from_parts(
+            nalgebra::Translation3::new(x, y, z),
+            nalgebra::UnitQuaternion::from_axis_angle(&nalgebra::Vector3::z_axis(), self.base_yaw_deg.to_radians()),
+        )
+    }
+}
+
 /// An open box standing on the table.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -330,6 +341,28 @@ impl WorldFile {
             }
         }
         Ok(())
+    }
+
+    /// The robot's URDF file, resolved against the world file's folder; an error names the
+    /// `robot.urdf` line when the file is missing or is not a URDF the arm can be built from.
+    pub fn robot_urdf(&self, world_path: &Path, text: &str) -> Result<Option<PathBuf>, WorldError> {
+        let Some(robot) = &self.robot else { return Ok(None) };
+        let path = world_path.parent().unwrap_or(Path::new(".")).join(&robot.urdf);
+        let problem = match std::fs::read_to_string(&path) {
+            Err(e) => Some(format!("cannot read {}: {e}", path.display())),
+            Ok(urdf) => rapier3d_urdf::urdf_rs::read_from_string(&urdf)
+                .err()
+                .map(|e| format!("{} is not valid URDF: {e}", path.display())),
+        };
+        match problem {
+            None => Ok(Some(path)),
+            Some(message) => Err(WorldError::Invalid {
+                file: world_path.display().to_string(),
+                line: line_of_field(text, "robot.urdf"),
+                field: "robot.urdf".into(),
+                message,
+            }),
+        }
     }
 
     /// The model library this world uses.

@@ -1,0 +1,222 @@
+//! The pick plan: approach above the grasp, descend, close, lift, move above the bin, lower,
+//! release, retreat -- as joint trajectories and gripper commands, checked against the scene.
+//!
+//! Free moves come from the planner with a clearance; the short straight moves (descend, lift,
+//! lower, retreat) are straight joint-space segments between IK solutions, checked densely with
+//! a small clearance and without the object being picked, which the fingers must get close to.
+
+use crate::arm::{Arm, Joints};
+use crate::ik::{Ik, IkError};
+use crate::planner::{Attached, CollisionWorld, Obstacle, PlannerParams, Problem};
+use crate::trajectory::{Limits, Trajectory};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use std::f64::consts::PI;
+
+/// How far the gripper backs off along the approach axis before descending, metres.
+pub const APPROACH_M: f64 = 0.08;
+/// How high the object is lifted before the transfer, and the gripper over the bin, metres.
+pub const LIFT_M: f64 = 0.10;
+/// Extra jaw opening beyond the object's width while approaching, metres.
+pub const OPEN_MARGIN_M: f64 = 0.025;
+/// The object is let go this far above where it would rest on the bin floor, metres.
+pub const DROP_M: f64 = 0.01;
+/// Clearance of free moves, and of the short straight moves near the object, metres.
+pub const FREE_CLEARANCE_M: f64 = 0.005;
+pub const NEAR_CLEARANCE_M: f64 = 0.001;
+/// Speed fractions of the joint limits for free moves and for moves near contact.
+pub const FREE_SPEED: f64 = 0.8;
+pub const NEAR_SPEED: f64 = 0.25;
+
+/// One way to hold the object: the gripper pose in the base frame and the object's width
+/// between the jaws.
+#[derive(Debug, Clone, Copy)]
+pub struct GraspCandidate {
+    pub base_from_gripper: Isometry3<f64>,
+    pub width: f64,
+}
+
+/// Where to put things: the centre of the bin's floor (z up), in the base frame.
+#[derive(Debug, Clone, Copy)]
+pub struct PlaceTarget {
+    pub base_from_floor_centre: Isometry3<f64>,
+}
+
+pub struct PickRequest {
+    /// In order of preference.
+    pub grasps: Vec<GraspCandidate>,
+    /// The object to pick, as the planner sees it.
+    pub target: Obstacle,
+    /// Everything else: table, bins, other objects.
+    pub obstacles: Vec<Obstacle>,
+    pub place: PlaceTarget,
+    pub start: Joints,
+    pub seed: u64,
+}
+
+#[derive(Debug, Clone)]
+pub enum Action {
+    Move(Trajectory),
+    /// Drive the fingers towards this opening under their force limit (0 closes on the object).
+    Grip { opening: f64 },
+}
+
+#[derive(Debug, Clone)]
+pub struct Step {
+    pub label: &'static str,
+    pub action: Action,
+}
+
+#[derive(Debug, Clone)]
+pub struct PickPlan {
+    /// Index into the request's grasps.
+    pub grasp_index: usize,
+    pub grasp: GraspCandidate,
+    /// The gripper pose at release.
+    pub base_from_release: Isometry3<f64>,
+    pub steps: Vec<Step>,
+}
+
+#[derive(Debug, Clone, thiserror::Error)]
+pub enum PickError {
+    #[error("no grasp could be planned: {}", .reasons.join("; "))]
+    NoGrasp { reasons: Vec<String> },
+}
+
+/// The four equivalent holds of a parallel-jaw grasp on a body: as given, turned half a turn
+/// about the approach (jaws swapped), and reversed through the body (approach flipped by half a
+/// turn about the jaw axis) -- valid for bodies symmetric through the grasp plane, as all the
+/// extruded library models are at their grasps.
+pub fn grasp_variants(base_from_grasp: &Isometry3<f64>) -> [Isometry3<f64>; 4] {
+    let about = |axis: Vector3<f64>| Isometry3::rotation(axis * PI);
+    [
+        *base_from_grasp,
+        base_from_grasp * about(Vector3::z()),
+        base_from_grasp * about(Vector3::y()),
+        base_from_grasp * about(Vector3::y()) * about(Vector3::z()),
+    ]
+}
+
+/// Plans the whole pick; tries the grasps in order and returns the first that works end to end.
+pub fn plan_pick(arm: &Arm, ik: &Ik, req: &PickRequest) -> Result<PickPlan, PickError> {
+    let mut reasons = Vec::new();
+    for (i, grasp) in req.grasps.iter().enumerate() {
+        match plan_with_grasp(arm, ik, req, grasp) {
+            Ok((steps, base_from_release)) => {
+                return Ok(PickPlan { grasp_index: i, grasp: *grasp, base_from_release, steps });
+            }
+            Err(why) => reasons.push(format!("grasp {i}: {why}")),
+        }
+    }
+    Err(PickError::NoGrasp { reasons })
+}
+
+fn limits(arm: &Arm) -> Limits {
+    Limits { velocity: arm.max_velocity(), acceleration: arm.max_acceleration() }
+}
+
+/// The gripper pose moved by `d` in the base frame.
+fn shifted(pose: &Isometry3<f64>, d: Vector3<f64>) -> Isometry3<f64> {
+    Translation3::from(d) * pose
+}
+
+fn plan_with_grasp(
+    arm: &Arm,
+    ik: &Ik,
+    req: &PickRequest,
+    grasp: &GraspCandidate,
+) -> Result<(Vec<Step>, Isometry3<f64>), String> {
+    let open = (grasp.width + OPEN_MARGIN_M).min(arm.max_opening());
+    if grasp.width > arm.max_opening() {
+        return Err(format!("the object is {:.0} mm wide; the jaws open {:.0} mm", grasp.width * 1e3, arm.max_opening() * 1e3));
+    }
+    let at = grasp.base_from_gripper;
+    let approach_dir = at.rotation * Vector3::z();
+    let pre = shifted(&at, -APPROACH_M * approach_dir);
+    let lifted = shifted(&at, Vector3::z() * LIFT_M);
+    let solve = |pose: &Isometry3<f64>, near: &Joints, what: &str| -> Result<Joints, String> {
+        ik.solve_near(pose, near).map_err(|e: IkError| format!("{what}: {e}"))
+    };
+    let q_pre = solve(&pre, &req.start, "above the grasp")?;
+    let q_at = solve(&at, &q_pre, "at the grasp")?;
+    let q_lift = solve(&lifted, &q_at, "lifted")?;
+
+    let gripper_from_object = at.inverse() * req.target.base_from_shape;
+    let held = Attached { shape: req.target.shape.clone(), gripper_from_shape: gripper_from_object };
+    let everything: Vec<Obstacle> = req.obstacles.iter().cloned().chain([req.target.clone()]).collect();
+    let free_world = CollisionWorld::new(arm, everything, FREE_CLEARANCE_M);
+    let near_world = CollisionWorld::new(arm, req.obstacles.clone(), NEAR_CLEARANCE_M);
+    let carry_world = CollisionWorld::new(arm, req.obstacles.clone(), FREE_CLEARANCE_M);
+    let straight = |world: &CollisionWorld, a: &Joints, b: &Joints, opening: f64, att: Option<&Attached>, what: &str| {
+        match world.segment_collision(arm, a, b, opening, att) {
+            Some(c) => Err(format!("{what}: {} would touch {}", c.part, c.obstacle)),
+            None => Ok(vec![*a, *b]),
+        }
+    };
+    let descend = straight(&near_world, &q_pre, &q_at, open, None, "descending")?;
+    // The held object starts on the table, touching it; the lift checks only the arm.
+    let lift = straight(&near_world, &q_at, &q_lift, 0.0, None, "lifting")?;
+
+    let (q_above_bin, q_release, release) = place_configuration(arm, ik, req, grasp, &q_lift, &carry_world, &held)?;
+    let lower = straight(&near_world, &q_above_bin, &q_release, grasp.width, Some(&held), "lowering into the bin")?;
+    let retreat = straight(&near_world, &q_release, &q_above_bin, open, None, "retreating")?;
+
+    let params = PlannerParams::default();
+    let approach = Problem { arm, world: &free_world, opening: open, attached: None }
+        .plan(&req.start, &q_pre, &params, req.seed)
+        .map_err(|e| format!("approach: {e}"))?;
+    let transfer = Problem { arm, world: &carry_world, opening: grasp.width, attached: Some(&held) }
+        .plan(&q_lift, &q_above_bin, &params, req.seed.wrapping_add(1))
+        .map_err(|e| format!("transfer: {e}"))?;
+
+    let (free, near) = (limits(arm).scaled(FREE_SPEED), limits(arm).scaled(NEAR_SPEED));
+    let mv = |label, path: &[Joints], lim: &Limits| Step { label, action: Action::Move(Trajectory::piecewise(path, lim)) };
+    let grip = |label, opening| Step { label, action: Action::Grip { opening } };
+    let steps = vec![
+        grip("open", open),
+        mv("approach", &approach, &free),
+        mv("descend", &descend, &near),
+        grip("close", 0.0),
+        mv("lift", &lift, &near),
+        mv("transfer", &transfer, &free),
+        mv("lower", &lower, &near),
+        grip("release", open),
+        mv("retreat", &retreat, &near),
+    ];
+    Ok((steps, release))
+}
+
+/// The release pose over the bin (the grasp's orientation turned about the vertical by a
+/// quarter turn at a time until it fits), its configuration and the one above it.
+fn place_configuration(
+    arm: &Arm,
+    ik: &Ik,
+    req: &PickRequest,
+    grasp: &GraspCandidate,
+    q_lift: &Joints,
+    carry_world: &CollisionWorld,
+    held: &Attached,
+) -> Result<(Joints, Joints, Isometry3<f64>), String> {
+    let floor = req.place.base_from_floor_centre;
+    // Keep the object's height under the gripper: it then comes to rest on the floor.
+    let height = grasp.base_from_gripper.translation.z + DROP_M;
+    let mut why = String::from("no release pose over the bin");
+    for quarter in [0.0, 1.0, -1.0, 2.0] {
+        let turn = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), quarter * PI / 2.0);
+        let mut release = Isometry3::from_parts(floor.translation, turn * grasp.base_from_gripper.rotation);
+        release.translation.vector += floor.rotation * Vector3::z() * height;
+        // The held object's centre over the bin centre, not the gripper's.
+        let object_offset = release.rotation * held.gripper_from_shape.translation.vector;
+        release.translation.vector -= Vector3::new(object_offset.x, object_offset.y, 0.0);
+        let above = shifted(&release, Vector3::z() * LIFT_M);
+        let (Ok(q_above), Ok(q_release)) = (ik.solve_near(&above, q_lift), ik.solve_near(&release, q_lift)) else {
+            why = "the bin is out of reach".into();
+            continue;
+        };
+        let q_release = ik.solve_near(&release, &q_above).unwrap_or(q_release);
+        match carry_world.collision(arm, &q_above, grasp.width, Some(held)) {
+            None => return Ok((q_above, q_release, release)),
+            Some(c) => why = format!("above the bin, {} would touch {}", c.part, c.obstacle),
+        }
+    }
+    Err(why)
+}

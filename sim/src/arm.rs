@@ -1,0 +1,193 @@
+//! The arm in the rapier world: the URDF as a multibody on a fixed base, its joints driven by
+//! position motors (with velocity feed-forward) that follow trajectories, and fingers as
+//! motorised prismatic joints under the URDF's effort limit, so that only friction holds what
+//! they close on.
+
+use crate::convert;
+use crate::physics::Cell;
+use nalgebra::Isometry3;
+use rapier3d::prelude::*;
+use rapier3d_urdf::{UrdfLoaderOptions, UrdfMultibodyOptions, UrdfRobot};
+use std::path::Path;
+
+/// Joint names the controller drives, as in the URDF.
+pub const ARM_JOINTS: [&str; 6] = ["zed", "shoulder", "elbow", "wrist_yaw", "wrist_pitch", "wrist_roll"];
+pub const FINGER_JOINTS: [&str; 2] = ["finger_left", "finger_right"];
+/// Where the arm waits: folded, the gripper 0.215 m over the table, clear of the workspace.
+pub const HOME: [f64; 6] = [0.5, 0.0, 2.0, 0.0, 0.0, 0.0];
+/// The link the gripper (tool centre point) frame is fixed to, and the tcp's offset along its z.
+const GRIPPER_LINK: &str = "gripper";
+const TCP_LINK: &str = "tcp";
+
+/// Position-motor gains of the arm joints (acceleration-based: independent of link masses).
+/// 400 rad/s natural frequency, critically damped: gravity sags zed by g/k = 0.06 mm.
+const ARM_STIFFNESS: f32 = 160_000.0;
+const ARM_DAMPING: f32 = 800.0;
+/// Finger motors: a stiff position servo whose force saturates at the URDF effort limit, so a
+/// closing finger that meets the object presses on it with that force.
+const FINGER_STIFFNESS: f32 = 40_000.0;
+const FINGER_DAMPING: f32 = 400.0;
+/// Friction of the finger pads and links (rubber pads on the fingers).
+const PAD_FRICTION: f32 = 1.0;
+
+#[derive(Debug, thiserror::Error)]
+pub enum SimArmError {
+    #[error("{file}: {message}")]
+    Urdf { file: String, message: String },
+}
+
+/// Handles of the arm's parts in the cell.
+pub struct SimArm {
+    joints: [MultibodyJointHandle; 6],
+    fingers: [MultibodyJointHandle; 2],
+    finger_force: [f32; 2],
+    /// The arm joints' effort limits (N or N m), which cap their motors.
+    effort: [f32; 6],
+    gripper_body: RigidBodyHandle,
+    gripper_from_tcp: Isometry3<f64>,
+    /// Rigid bodies of the arm's links (for contact queries).
+    pub bodies: Vec<RigidBodyHandle>,
+    pub finger_bodies: [RigidBodyHandle; 2],
+    pub world_from_base: Isometry3<f64>,
+}
+
+impl SimArm {
+    /// Loads the URDF at `path` into `cell` with its base at `world_from_base`, the arm joints at
+    /// `q` and the fingers at `opening`.
+    pub fn insert(
+        cell: &mut Cell,
+        path: &Path,
+        world_from_base: &Isometry3<f64>,
+        q: &[f64; 6],
+        opening: f64,
+    ) -> Result<SimArm, SimArmError> {
+        let file = path.display().to_string();
+        let err = |message: String| SimArmError::Urdf { file: file.clone(), message };
+        let options = UrdfLoaderOptions {
+            make_roots_fixed: true,
+            shift: convert::pose(world_from_base),
+            collider_blueprint: ColliderBuilder::default().density(0.0).friction(PAD_FRICTION),
+            // A sleeping multibody ignores new motor targets; the arm is always under control.
+            rigid_body_blueprint: RigidBodyBuilder::dynamic().can_sleep(false),
+            ..Default::default()
+        };
+        let (robot, urdf) = UrdfRobot::from_file(path, options, None).map_err(|e| err(e.to_string()))?;
+        let joint_names: Vec<String> = robot.joints.iter().map(|j| urdf.joints[j.urdf_joint_index].name.clone()).collect();
+        let link_names: Vec<String> = robot.links.iter().map(|l| urdf.links[l.urdf_link_index].name.clone()).collect();
+        let tcp_joint = urdf.joints.iter().find(|j| j.child.link == TCP_LINK && j.parent.link == GRIPPER_LINK);
+        let gripper_from_tcp = tcp_joint
+            .map(|j| origin_pose(&j.origin))
+            .ok_or_else(|| err(format!("needs a fixed joint from `{GRIPPER_LINK}` to `{TCP_LINK}`")))?;
+        let w = &mut cell.world;
+        let handles = robot.insert_using_multibody_joints(
+            &mut w.bodies,
+            &mut w.colliders,
+            &mut w.multibody_joints,
+            UrdfMultibodyOptions::DISABLE_SELF_CONTACTS,
+        );
+        let joint = |name: &str| {
+            let i = joint_names.iter().position(|n| n == name).ok_or_else(|| err(format!("no joint `{name}`")))?;
+            handles.joints[i].joint.ok_or_else(|| err(format!("joint `{name}` did not become a multibody joint")))
+        };
+        let body = |name: &str| {
+            let i = link_names.iter().position(|n| n == name).ok_or_else(|| err(format!("no link `{name}`")))?;
+            Ok::<_, SimArmError>(handles.links[i].body)
+        };
+        let joints = [joint("zed")?, joint("shoulder")?, joint("elbow")?, joint("wrist_yaw")?, joint("wrist_pitch")?, joint("wrist_roll")?];
+        let fingers = [joint(FINGER_JOINTS[0])?, joint(FINGER_JOINTS[1])?];
+        let effort = |name: &str| urdf.joints.iter().find(|j| j.name == name).map_or(0.0, |j| j.limit.effort as f32);
+        let arm = SimArm {
+            joints,
+            fingers,
+            finger_force: [effort(FINGER_JOINTS[0]), effort(FINGER_JOINTS[1])],
+            effort: ARM_JOINTS.map(effort),
+            gripper_body: body(GRIPPER_LINK)?,
+            gripper_from_tcp,
+            bodies: handles.links.iter().map(|l| l.body).collect(),
+            finger_bodies: [body(FINGER_JOINTS[0])?, body(FINGER_JOINTS[1])?],
+            world_from_base: *world_from_base,
+        };
+        arm.place(cell, q, opening);
+        arm.command(cell, q, &[0.0; 6]);
+        arm.grip(cell, opening);
+        Ok(arm)
+    }
+
+    /// Puts the joints at `q` and the fingers at `opening` at once (before the simulation runs).
+    fn place(&self, cell: &mut Cell, q: &[f64; 6], opening: f64) {
+        let w = &mut cell.world;
+        let half = [opening / 2.0; 2];
+        let targets = self.joints.iter().zip(q).chain(self.fingers.iter().zip(half.iter()));
+        for (&h, &value) in targets {
+            let (mb, link) = w.multibody_joints.get_mut(h).expect("arm joint");
+            let current = free_coordinate(&mb.link(link).unwrap().joint);
+            mb.link_mut(link).unwrap().joint.apply_displacement(&[(value - current) as f32]);
+        }
+        let (mb, _) = w.multibody_joints.get_mut(self.joints[0]).expect("arm joint");
+        mb.forward_kinematics(&w.bodies, true);
+        mb.update_rigid_bodies(&mut w.bodies, true);
+    }
+
+    /// Sets the joint motors to track position `q` with velocity `qd`.
+    pub fn command(&self, cell: &mut Cell, q: &[f64; 6], qd: &[f64; 6]) {
+        for (k, &h) in self.joints.iter().enumerate() {
+            let axis = if k == 0 { JointAxis::LinX } else { JointAxis::AngX };
+            let (mb, link) = cell.world.multibody_joints.get_mut(h).expect("arm joint");
+            let data = &mut mb.link_mut(link).unwrap().joint.data;
+            data.set_motor(axis, q[k] as f32, qd[k] as f32, ARM_STIFFNESS, ARM_DAMPING);
+            data.set_motor_max_force(axis, self.effort[k]);
+        }
+    }
+
+    /// Drives both fingers towards `opening` (metres between the pads) under their force limit.
+    pub fn grip(&self, cell: &mut Cell, opening: f64) {
+        for (&h, &force) in self.fingers.iter().zip(&self.finger_force) {
+            let (mb, link) = cell.world.multibody_joints.get_mut(h).expect("finger joint");
+            let data = &mut mb.link_mut(link).unwrap().joint.data;
+            data.set_motor(JointAxis::LinX, (opening / 2.0) as f32, 0.0, FINGER_STIFFNESS, FINGER_DAMPING);
+            data.set_motor_model(JointAxis::LinX, MotorModel::ForceBased);
+            data.set_motor_max_force(JointAxis::LinX, force);
+        }
+    }
+
+    /// Measured arm joint values.
+    pub fn joints(&self, cell: &Cell) -> [f64; 6] {
+        std::array::from_fn(|k| self.coordinate(cell, self.joints[k]))
+    }
+
+    /// Measured opening between the pads.
+    pub fn opening(&self, cell: &Cell) -> f64 {
+        self.fingers.iter().map(|&h| self.coordinate(cell, h)).sum()
+    }
+
+    fn coordinate(&self, cell: &Cell, h: MultibodyJointHandle) -> f64 {
+        let (mb, link) = cell.world.multibody_joints.get(h).expect("arm joint");
+        free_coordinate(&mb.link(link).unwrap().joint)
+    }
+
+    /// The gripper (tool centre point) frame in the world, as simulated.
+    pub fn world_from_gripper(&self, cell: &Cell) -> Isometry3<f64> {
+        convert::iso(cell.world.bodies[self.gripper_body].position()) * self.gripper_from_tcp
+    }
+}
+
+/// A URDF `<origin>`: rpy are fixed-axis roll, pitch, yaw.
+fn origin_pose(pose: &rapier3d_urdf::urdf_rs::Pose) -> Isometry3<f64> {
+    let [x, y, z] = pose.xyz.0;
+    let [roll, pitch, yaw] = pose.rpy.0;
+    Isometry3::from_parts(
+        nalgebra::Translation3::new(x, y, z),
+        nalgebra::UnitQuaternion::from_euler_angles(roll, pitch, yaw),
+    )
+}
+
+/// The value of a one-degree-of-freedom joint.
+fn free_coordinate(joint: &MultibodyJoint) -> f64 {
+    let c = joint.coords();
+    let locked = joint.data.locked_axes;
+    if !locked.contains(JointAxesMask::LIN_X) {
+        c[0] as f64
+    } else {
+        c[3] as f64
+    }
+}

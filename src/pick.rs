@@ -1,0 +1,347 @@
+//! Physical pick and place in the simulated cell: the arm is loaded into a rapier world holding a
+//! settled scene, a pick plan is made for an object from its pose (ground truth here; the
+//! end-to-end work will hand in vision's pose), the motors follow the plan, and the outcome is
+//! judged from the physics alone: held = between the fingers and lifted with them; placed = at
+//! rest inside the bin.
+
+use anyhow::{Context, Result, anyhow};
+use mesh::Model;
+use nalgebra::{Isometry3, Point3, Vector3};
+use robot::pick::{Action, GraspCandidate, PickPlan, PickRequest, PlaceTarget, grasp_variants, plan_pick};
+use robot::planner::Obstacle;
+use robot::{Arm, Ik};
+use serde::Serialize;
+use sim::arm::SimArm;
+use sim::physics::{Cell, collision_shape};
+use sim::scene::{Scenario, Scene, static_boxes};
+use std::path::PathBuf;
+
+pub use sim::arm::HOME;
+/// How long the cell runs after a move or a grip command before the next one, seconds.
+const HOLD_S: f64 = 0.15;
+/// Longest a grip command may take to come to rest, seconds.
+const GRIP_LIMIT_S: f64 = 1.5;
+/// Time allowed for a released object to come to rest, seconds.
+const REST_LIMIT_S: f64 = 3.0;
+/// A lifted object must have risen at least this fraction of the lift.
+const LIFTED_FRACTION: f64 = 0.5;
+/// A held object's centre stays within this distance of the tool centre point, metres.
+const HELD_RADIUS_M: f64 = 0.08;
+
+/// The robot side of a scenario: the arm model, its IK and where it stands.
+pub struct Workcell {
+    pub urdf: PathBuf,
+    pub arm: Arm,
+    pub ik: Ik,
+    pub world_from_base: Isometry3<f64>,
+}
+
+impl Workcell {
+    pub fn new(scn: &Scenario) -> Result<Workcell> {
+        let no_robot = || anyhow!("{}: no [robot] section", scn.path.display());
+        let spec = scn.world.robot.as_ref().ok_or_else(no_robot)?;
+        let urdf = scn.robot_urdf.clone().ok_or_else(no_robot)?;
+        let arm = Arm::from_urdf_file(&urdf)?;
+        let ik = Ik::new(&arm, &urdf.display().to_string())?;
+        Ok(Workcell { urdf, arm, ik, world_from_base: spec.world_from_base() })
+    }
+}
+
+/// How one pick went.
+#[derive(Debug, Clone, Serialize)]
+pub struct PickOutcome {
+    pub object: u32,
+    pub model: String,
+    /// `placed`, or what went wrong: `unplanned`, `miss`, `slip`, `drop`, `outside bin`.
+    pub result: String,
+    pub placed: bool,
+    pub held: bool,
+    pub detail: Option<String>,
+    pub grasp: Option<usize>,
+    pub simulated_s: f64,
+    /// Worst arm joint tracking error during moves (zed in metres, others radians).
+    pub max_tracking_error: f64,
+    /// The move where that happened.
+    pub worst_tracking_step: Option<String>,
+    /// Opening of the closed fingers on the object, mm (the object's width if all went well).
+    pub closed_opening_mm: Option<f64>,
+}
+
+/// A scene in the physics world with the arm in it.
+pub struct PickCell<'a> {
+    pub scn: &'a Scenario,
+    pub work: &'a Workcell,
+    pub cell: Cell,
+    pub arm: SimArm,
+    /// (object id, model, body) for every object.
+    pub objects: Vec<(u32, String, rapier3d::prelude::RigidBodyHandle)>,
+    pub simulated_s: f64,
+}
+
+impl<'a> PickCell<'a> {
+    /// The settled `scene` with the arm at [`HOME`].
+    pub fn new(scn: &'a Scenario, work: &'a Workcell, scene: &Scene) -> Result<PickCell<'a>> {
+        let statics = static_boxes(&scn.world);
+        let mut cell = Cell::new(&scn.world.physics, &statics);
+        let objects = scene
+            .objects
+            .iter()
+            .map(|o| (o.id, o.model.clone(), cell.add_object(&scn.library.models[&o.model], &o.world_from_model)))
+            .collect();
+        let arm = SimArm::insert(&mut cell, &work.urdf, &work.world_from_base, &HOME, 0.0)?;
+        let mut pc = PickCell { scn, work, cell, arm, objects, simulated_s: 0.0 };
+        pc.run_for(HOLD_S);
+        Ok(pc)
+    }
+
+    fn dt(&self) -> f64 {
+        self.cell.world.integration_parameters.dt as f64
+    }
+
+    fn step(&mut self) {
+        self.cell.world.step();
+        self.simulated_s += self.dt();
+    }
+
+    fn run_for(&mut self, seconds: f64) {
+        for _ in 0..(seconds / self.dt()).ceil() as usize {
+            self.step();
+        }
+    }
+
+    fn body(&self, id: u32) -> Result<(String, rapier3d::prelude::RigidBodyHandle)> {
+        self.objects
+            .iter()
+            .find(|(i, _, _)| *i == id)
+            .map(|(_, m, b)| (m.clone(), *b))
+            .ok_or_else(|| anyhow!("no object {id} in the scene (objects are numbered 1..={})", self.objects.len()))
+    }
+
+    /// The pick request for object `id`, from the objects' current (true) poses.
+    pub fn request(&self, id: u32, seed: u64) -> Result<PickRequest> {
+        let base_from_world = self.work.world_from_base.inverse();
+        let mut obstacles: Vec<Obstacle> = static_boxes(&self.scn.world)
+            .into_iter()
+            .filter(|b| b.name != "floor")
+            .map(|b| {
+                let h = b.half_extents;
+                Obstacle {
+                    name: b.name.clone(),
+                    shape: parry3d::shape::SharedShape::cuboid(h.x as f32, h.y as f32, h.z as f32),
+                    base_from_shape: base_from_world * b.world_from_box,
+                }
+            })
+            .collect();
+        let mut target = None;
+        for (oid, model, body) in &self.objects {
+            let o = Obstacle {
+                name: format!("object {oid} ({model})"),
+                shape: collision_shape(&self.scn.library.models[model]),
+                base_from_shape: base_from_world * self.cell.pose(*body),
+            };
+            if *oid == id { target = Some(o) } else { obstacles.push(o) }
+        }
+        let target = target.ok_or_else(|| anyhow!("no object {id}"))?;
+        let (model_name, _) = self.body(id)?;
+        let grasps = grasp_candidates(&self.scn.library.models[&model_name], &target.base_from_shape);
+        let bin = self.scn.world.bins.first().ok_or_else(|| anyhow!("{}: no bin to place into", self.scn.path.display()))?;
+        let floor = Isometry3::translation(bin.centre_m[0], bin.centre_m[1], bin.wall_m);
+        Ok(PickRequest {
+            grasps,
+            target,
+            obstacles,
+            place: PlaceTarget { base_from_floor_centre: base_from_world * floor },
+            start: self.arm.joints(&self.cell),
+            seed,
+        })
+    }
+
+    /// Plans and executes the pick of object `id` into the first bin.
+    pub fn pick(&mut self, id: u32, seed: u64) -> Result<PickOutcome> {
+        let (model, body) = self.body(id)?;
+        let req = self.request(id, seed)?;
+        let start_s = self.simulated_s;
+        let mut out = PickOutcome {
+            object: id,
+            model,
+            result: "unplanned".into(),
+            placed: false,
+            held: false,
+            detail: None,
+            grasp: None,
+            simulated_s: 0.0,
+            max_tracking_error: 0.0,
+            worst_tracking_step: None,
+            closed_opening_mm: None,
+        };
+        let plan = match plan_pick(&self.work.arm, &self.work.ik, &req) {
+            Ok(p) => p,
+            Err(e) => {
+                out.detail = Some(e.to_string());
+                return Ok(out);
+            }
+        };
+        out.grasp = Some(plan.grasp_index);
+        if std::env::var("DBG").is_ok() {
+            for st in &plan.steps {
+                if let Action::Move(t) = &st.action {
+                    let q = t.end().unwrap();
+                    let mut all = req.obstacles.clone();
+                    all.push(req.target.clone());
+                    let w = robot::planner::CollisionWorld::new(&self.work.arm, all, 0.0);
+                    eprintln!("{} end {:?} collision(0 clearance, target incl) {:?}", st.label, q, w.collision(&self.work.arm, &q, 0.04, None));
+                }
+            }
+        }
+        self.execute(&plan, body, &mut out);
+        out.simulated_s = self.simulated_s - start_s;
+        Ok(out)
+    }
+
+    fn execute(&mut self, plan: &PickPlan, body: rapier3d::prelude::RigidBodyHandle, out: &mut PickOutcome) {
+        let z0 = self.cell.pose(body).translation.z;
+        for step in &plan.steps {
+            match &step.action {
+                Action::Move(traj) => {
+                    let err = self.follow(traj);
+                    if err > out.max_tracking_error {
+                        out.max_tracking_error = err;
+                        out.worst_tracking_step = Some(step.label.to_string());
+                    }
+                }
+                Action::Grip { opening } => self.grip(*opening),
+            }
+            match step.label {
+                "close" => {
+                    let opening = self.arm.opening(&self.cell);
+                    out.closed_opening_mm = Some(opening * 1e3);
+                    if opening < 0.2 * plan.grasp.width {
+                        return fail(out, "miss", format!("the fingers closed to {:.1} mm on nothing", opening * 1e3));
+                    }
+                }
+                "lift" => {
+                    let rise = self.cell.pose(body).translation.z - z0;
+                    out.held = self.between_fingers(body) && rise > LIFTED_FRACTION * robot::pick::LIFT_M;
+                    if !out.held {
+                        return fail(out, "slip", format!("the object rose {:.0} mm with the gripper", rise * 1e3));
+                    }
+                }
+                "lower" if !self.between_fingers(body) => {
+                    return fail(out, "drop", "the object left the gripper on the way to the bin".into());
+                }
+                _ => {}
+            }
+        }
+        self.run_until_rest(body);
+        out.placed = self.inside_bin(body);
+        if out.placed {
+            out.result = "placed".into();
+        } else {
+            let p = self.cell.pose(body).translation.vector;
+            fail(out, "outside bin", format!("the object came to rest at ({:.3}, {:.3}, {:.3})", p.x, p.y, p.z));
+        }
+    }
+
+    /// Runs a trajectory through the joint motors; the worst tracking error.
+    fn follow(&mut self, traj: &robot::trajectory::Trajectory) -> f64 {
+        let n = (traj.duration() / self.dt()).ceil() as usize;
+        let mut worst = 0.0f64;
+        for i in 1..=n {
+            let (q, qd) = traj.sample(i as f64 * self.dt());
+            self.arm.command(&mut self.cell, &q, &qd);
+            self.step();
+            let actual = self.arm.joints(&self.cell);
+            worst = worst.max((0..6).map(|k| (actual[k] - q[k]).abs()).fold(0.0, f64::max));
+            if std::env::var("DBG").is_ok() && (0..6).any(|k| (actual[k] - q[k]).abs() > 0.01) {
+                eprintln!("t {:.3} q {:?} actual {:?}", i as f64 * self.dt(), q, actual);
+                let w = &self.cell.world;
+                for pair in w.narrow_phase.contact_pairs() {
+                    if !pair.has_any_active_contact() { continue; }
+                    let b1 = w.colliders[pair.collider1].parent().unwrap();
+                    let b2 = w.colliders[pair.collider2].parent().unwrap();
+                    let arm1 = self.arm.bodies.iter().position(|b| *b == b1);
+                    let arm2 = self.arm.bodies.iter().position(|b| *b == b2);
+                    if arm1.is_some() || arm2.is_some() {
+                        let obj = |b| self.objects.iter().find(|o| o.2 == b).map(|o| o.1.clone());
+                        let depth = pair.manifolds().iter().flat_map(|m| m.points.iter().map(|p| p.dist)).fold(f32::INFINITY, f32::min);
+                        if depth < 0.002 { eprintln!("  contact arm {:?}/{:?} objs {:?} {:?} dist {depth}", arm1, arm2, obj(b1), obj(b2)); }
+                    }
+                }
+            }
+        }
+        self.run_for(HOLD_S);
+        worst
+    }
+
+    /// Commands the fingers and waits until they stop moving.
+    fn grip(&mut self, opening: f64) {
+        self.arm.grip(&mut self.cell, opening);
+        let mut last = self.arm.opening(&self.cell);
+        let (mut t, mut calm) = (0.0, 0.0);
+        while t < GRIP_LIMIT_S && calm < 0.1 {
+            self.step();
+            t += self.dt();
+            let now = self.arm.opening(&self.cell);
+            calm = if (now - last).abs() < 1e-5 { calm + self.dt() } else { 0.0 };
+            last = now;
+        }
+        self.run_for(HOLD_S);
+    }
+
+    fn run_until_rest(&mut self, body: rapier3d::prelude::RigidBodyHandle) {
+        let mut calm = 0.0;
+        let mut t = 0.0;
+        while t < REST_LIMIT_S && calm < 0.25 {
+            self.step();
+            t += self.dt();
+            let b = &self.cell.world.bodies[body];
+            calm = if b.linvel().length() < 2e-3 && b.angvel().length() < 2e-2 { calm + self.dt() } else { 0.0 };
+        }
+    }
+
+    /// The object's centre of mass lies between the finger pads (within reach of the tcp).
+    fn between_fingers(&self, body: rapier3d::prelude::RigidBodyHandle) -> bool {
+        let gripper = self.arm.world_from_gripper(&self.cell);
+        let com = self.cell.world.bodies[body].center_of_mass();
+        let c = gripper.inverse() * Point3::new(com.x as f64, com.y as f64, com.z as f64);
+        let half = self.arm.opening(&self.cell) / 2.0 + 0.01;
+        c.coords.norm() < HELD_RADIUS_M && c.y.abs() < half
+    }
+
+    /// At rest with its centre of mass over the inside of the first bin, below its walls' top.
+    pub fn inside_bin(&self, body: rapier3d::prelude::RigidBodyHandle) -> bool {
+        let Some(bin) = self.scn.world.bins.first() else { return false };
+        let b = &self.cell.world.bodies[body];
+        let com = b.center_of_mass();
+        let (dx, dy) = ((com.x as f64 - bin.centre_m[0]).abs(), (com.y as f64 - bin.centre_m[1]).abs());
+        let resting = b.linvel().length() < 0.01;
+        resting && dx < bin.size_m[0] / 2.0 && dy < bin.size_m[1] / 2.0 && (com.z as f64) < bin.wall_m + bin.size_m[2]
+    }
+}
+
+fn fail(out: &mut PickOutcome, result: &str, detail: String) {
+    out.result = result.into();
+    out.detail = Some(detail);
+}
+
+/// Every model grasp and its equivalent holds, in the base frame, most nearly top-down first.
+pub fn grasp_candidates(model: &Model, base_from_model: &Isometry3<f64>) -> Vec<GraspCandidate> {
+    let mut out: Vec<GraspCandidate> = model
+        .grasps
+        .iter()
+        .flat_map(|g| {
+            grasp_variants(&(base_from_model * g.model_from_gripper))
+                .map(|pose| GraspCandidate { base_from_gripper: pose, width: g.opening })
+        })
+        .collect();
+    let downness = |g: &GraspCandidate| (g.base_from_gripper.rotation * Vector3::z()).z;
+    out.sort_by(|a, b| downness(a).total_cmp(&downness(b)));
+    out
+}
+
+/// Loads the scenario and its workcell, with context naming the world file.
+pub fn load(path: &std::path::Path) -> Result<(Scenario, Workcell)> {
+    let scn = Scenario::load(path)?;
+    let work = Workcell::new(&scn).with_context(|| format!("{}: the robot", path.display()))?;
+    Ok((scn, work))
+}
