@@ -32,6 +32,24 @@ pub enum EvalTarget {
         #[arg(long)]
         json: bool,
     },
+    /// Physical picks with the simulated arm, planned from true poses, judged from the physics.
+    ///
+    /// JSON keys: `success_rate` (placed in the bin, of all picks: each of `--trials` seeded
+    /// clutter scenes of the world cleared object by object, the highest first),
+    /// `single_success_rate` (each library model but the calibration flag alone, dropped at
+    /// `--trials` seeded poses over the clutter region), `single_by_model`, `failures` (counts by
+    /// kind: `unplanned`, `miss`, `slip`, `drop`, `outside bin`), `picks`,
+    /// `simulated_s`, `wall_s`.
+    Pick {
+        world: PathBuf,
+        #[arg(long, default_value_t = 20)]
+        trials: u64,
+        /// First seed; trial k uses seed + k.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        #[arg(long)]
+        json: bool,
+    },
     /// The model matcher on the front end's 3D lines: render, locate, compare with ground truth.
     ///
     /// JSON keys: `located_fraction` (of objects with >= 30% of their feature-edge length
@@ -53,6 +71,7 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
     let (world, scenes, seed, slices, json) = match target {
         EvalTarget::Vision { world, scenes, seed, slices, json } => (world, scenes, seed, slices, json),
         EvalTarget::Locate { world, scenes, seed, json } => return run_locate(&world, scenes, seed, json),
+        EvalTarget::Pick { world, trials, seed, json } => return crate::eval_pick::run(&world, trials, seed, json),
     };
     let scn = Scenario::load(&world)?;
     let calib = sim::rig::calibration(&scn.world.cameras);

@@ -3,6 +3,7 @@
 mod bench;
 mod edges_cmd;
 mod eval_cmd;
+mod eval_pick;
 mod locate_cmd;
 mod pick_cmd;
 mod render_cmd;
@@ -108,8 +109,11 @@ enum Command {
     Pick {
         world: PathBuf,
         /// The object's id (1-based, as in scene.json).
-        #[arg(long)]
-        object: u32,
+        #[arg(long, required_unless_present = "all")]
+        object: Option<u32>,
+        /// Clear the table instead: pick every object in turn, the highest first.
+        #[arg(long, conflicts_with = "object")]
+        all: bool,
         /// Seed (default: the world file's).
         #[arg(long)]
         seed: Option<u64>,
@@ -149,7 +153,7 @@ fn main() -> std::process::ExitCode {
         Command::Locate { world, seed, models, json, out } => {
             locate_cmd::run(&world, seed, models, json, out.as_deref())
         }
-        Command::Pick { world, object, seed, json } => pick_cmd::run(&world, object, seed, json),
+        Command::Pick { world, object, all: _, seed, json } => pick_cmd::run(&world, object, seed, json),
         Command::Eval { what } => eval_cmd::run(what),
         Command::Bench { what } => bench::run(what),
     };

@@ -35,10 +35,12 @@ pub struct GraspCandidate {
     pub width: f64,
 }
 
-/// Where to put things: the centre of the bin's floor (z up), in the base frame.
+/// Where to put things: the centre of the bin's floor (z up) in the base frame, and the floor's
+/// inside length and width (along that frame's x and y), metres.
 #[derive(Debug, Clone, Copy)]
 pub struct PlaceTarget {
     pub base_from_floor_centre: Isometry3<f64>,
+    pub size_xy: [f64; 2],
 }
 
 pub struct PickRequest {
@@ -57,7 +59,9 @@ pub struct PickRequest {
 pub enum Action {
     Move(Trajectory),
     /// Drive the fingers towards this opening under their force limit (0 closes on the object).
-    Grip { opening: f64 },
+    Grip {
+        opening: f64,
+    },
 }
 
 #[derive(Debug, Clone)]
@@ -127,7 +131,11 @@ fn plan_with_grasp(
 ) -> Result<(Vec<Step>, Isometry3<f64>), String> {
     let open = (grasp.width + OPEN_MARGIN_M).min(arm.max_opening());
     if grasp.width > arm.max_opening() {
-        return Err(format!("the object is {:.0} mm wide; the jaws open {:.0} mm", grasp.width * 1e3, arm.max_opening() * 1e3));
+        return Err(format!(
+            "the object is {:.0} mm wide; the jaws open {:.0} mm",
+            grasp.width * 1e3,
+            arm.max_opening() * 1e3
+        ));
     }
     let at = grasp.base_from_gripper;
     let approach_dir = at.rotation * Vector3::z();
@@ -146,19 +154,20 @@ fn plan_with_grasp(
     let free_world = CollisionWorld::new(arm, everything, FREE_CLEARANCE_M);
     let near_world = CollisionWorld::new(arm, req.obstacles.clone(), NEAR_CLEARANCE_M);
     let carry_world = CollisionWorld::new(arm, req.obstacles.clone(), FREE_CLEARANCE_M);
-    let straight = |world: &CollisionWorld, a: &Joints, b: &Joints, opening: f64, att: Option<&Attached>, what: &str| {
-        match world.segment_collision(arm, a, b, opening, att) {
+    let straight =
+        |world: &CollisionWorld, a: &Joints, b: &Joints, opening: f64, att: Option<&Attached>, what: &str| match world
+            .segment_collision(arm, a, b, opening, att)
+        {
             Some(c) => Err(format!("{what}: {} would touch {}", c.part, c.obstacle)),
             None => Ok(vec![*a, *b]),
-        }
-    };
+        };
     let descend = straight(&near_world, &q_pre, &q_at, open, None, "descending")?;
     // The held object starts on the table, touching it; the lift checks only the arm.
     let lift = straight(&near_world, &q_at, &q_lift, 0.0, None, "lifting")?;
 
-    let (q_above_bin, q_release, release) = place_configuration(arm, ik, req, grasp, &q_lift, &carry_world, &held)?;
-    let lower = straight(&near_world, &q_above_bin, &q_release, grasp.width, Some(&held), "lowering into the bin")?;
-    let retreat = straight(&near_world, &q_release, &q_above_bin, open, None, "retreating")?;
+    let place = place_configuration(arm, ik, req, grasp, &q_lift, (&carry_world, &near_world), &held)?;
+    let (q_above_bin, release) = (place.q_above, place.pose);
+    let (lower, retreat) = (vec![place.q_above, place.q_at], vec![place.q_at, place.q_above]);
 
     let params = PlannerParams::default();
     let approach = Problem { arm, world: &free_world, opening: open, attached: None }
@@ -169,7 +178,8 @@ fn plan_with_grasp(
         .map_err(|e| format!("transfer: {e}"))?;
 
     let (free, near) = (limits(arm).scaled(FREE_SPEED), limits(arm).scaled(NEAR_SPEED));
-    let mv = |label, path: &[Joints], lim: &Limits| Step { label, action: Action::Move(Trajectory::piecewise(path, lim)) };
+    let mv =
+        |label, path: &[Joints], lim: &Limits| Step { label, action: Action::Move(Trajectory::piecewise(path, lim)) };
     let grip = |label, opening| Step { label, action: Action::Grip { opening } };
     let steps = vec![
         grip("open", open),
@@ -185,37 +195,74 @@ fn plan_with_grasp(
     Ok((steps, release))
 }
 
-/// The release pose over the bin (the grasp's orientation turned about the vertical by a
-/// quarter turn at a time until it fits), its configuration and the one above it.
+/// Release heights tried above the one that sets the object on the floor, metres: objects
+/// already in the bin push the release up.
+const RELEASE_RAISES_M: [f64; 4] = [0.0, 0.03, 0.06, 0.09];
+
+/// A release over the bin: its pose, the configurations above it and at it, checked so that
+/// lowering the held object there and retreating without it touch nothing.
+struct Release {
+    pose: Isometry3<f64>,
+    q_above: Joints,
+    q_at: Joints,
+}
+
+/// The first release that works, trying the lowest heights first, then spots over the bin
+/// (centre, then the middles of its quarters), then the grasp's orientation turned about the
+/// vertical a quarter turn at a time.
 fn place_configuration(
     arm: &Arm,
     ik: &Ik,
     req: &PickRequest,
     grasp: &GraspCandidate,
     q_lift: &Joints,
-    carry_world: &CollisionWorld,
+    worlds: (&CollisionWorld, &CollisionWorld),
     held: &Attached,
-) -> Result<(Joints, Joints, Isometry3<f64>), String> {
+) -> Result<Release, String> {
+    let (carry_world, near_world) = worlds;
     let floor = req.place.base_from_floor_centre;
+    let [sx, sy] = req.place.size_xy;
+    let spots = [(0.0, 0.0), (-0.25, -0.25), (0.25, -0.25), (-0.25, 0.25), (0.25, 0.25)].map(|(u, v)| (u * sx, v * sy));
     // Keep the object's height under the gripper: it then comes to rest on the floor.
-    let height = grasp.base_from_gripper.translation.z + DROP_M;
+    let floor_height = grasp.base_from_gripper.translation.z + DROP_M;
+    let open = (grasp.width + OPEN_MARGIN_M).min(arm.max_opening());
     let mut why = String::from("no release pose over the bin");
-    for quarter in [0.0, 1.0, -1.0, 2.0] {
-        let turn = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), quarter * PI / 2.0);
-        let mut release = Isometry3::from_parts(floor.translation, turn * grasp.base_from_gripper.rotation);
-        release.translation.vector += floor.rotation * Vector3::z() * height;
-        // The held object's centre over the bin centre, not the gripper's.
-        let object_offset = release.rotation * held.gripper_from_shape.translation.vector;
-        release.translation.vector -= Vector3::new(object_offset.x, object_offset.y, 0.0);
-        let above = shifted(&release, Vector3::z() * LIFT_M);
-        let (Ok(q_above), Ok(q_release)) = (ik.solve_near(&above, q_lift), ik.solve_near(&release, q_lift)) else {
-            why = "the bin is out of reach".into();
-            continue;
-        };
-        let q_release = ik.solve_near(&release, &q_above).unwrap_or(q_release);
-        match carry_world.collision(arm, &q_above, grasp.width, Some(held)) {
-            None => return Ok((q_above, q_release, release)),
-            Some(c) => why = format!("above the bin, {} would touch {}", c.part, c.obstacle),
+    for raise in RELEASE_RAISES_M {
+        for (dx, dy) in spots {
+            for quarter in [0.0, 1.0, -1.0, 2.0] {
+                let turn = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), quarter * PI / 2.0);
+                let mut pose = Isometry3::from_parts(floor.translation, turn * grasp.base_from_gripper.rotation);
+                pose.translation.vector += floor.rotation * Vector3::new(dx, dy, floor_height + raise);
+                // The held object's centre over the spot, not the gripper's.
+                let object_offset = pose.rotation * held.gripper_from_shape.translation.vector;
+                pose.translation.vector -= Vector3::new(object_offset.x, object_offset.y, 0.0);
+                let above = shifted(&pose, Vector3::z() * LIFT_M);
+                let Ok(q_above) = ik.solve_near(&above, q_lift) else {
+                    why = "the bin is out of reach".into();
+                    continue;
+                };
+                let Ok(q_at) = ik.solve_near(&pose, &q_above) else {
+                    why = "the bin floor is out of reach".into();
+                    continue;
+                };
+                let problem = carry_world
+                    .collision(arm, &q_above, grasp.width, Some(held))
+                    .map(|c| format!("above the bin, {} would touch {}", c.part, c.obstacle))
+                    .or_else(|| {
+                        near_world
+                            .segment_collision(arm, &q_above, &q_at, grasp.width, Some(held))
+                            .map(|c| format!("lowering into the bin, {} would touch {}", c.part, c.obstacle))
+                    })
+                    .or_else(|| {
+                        near_world
+                            .segment_collision(arm, &q_at, &q_above, open, None)
+                            .map(|c| format!("retreating from the bin, {} would touch {}", c.part, c.obstacle))
+                    });
+                match problem {
+                    None => return Ok(Release { pose, q_above, q_at }),
+                    Some(p) => why = p,
+                }
+            }
         }
     }
     Err(why)

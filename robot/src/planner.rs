@@ -128,9 +128,10 @@ impl CollisionWorld {
             if (world_centre.coords - c).norm() > radius + r + self.clearance {
                 continue;
             }
-            let d = parry3d::query::distance(&parry_pose, shape.as_ref(), &to_parry(&o.base_from_shape), o.shape.as_ref())
-                .map(|d| d.distance as f64)
-                .unwrap_or(0.0);
+            let d =
+                parry3d::query::distance(&parry_pose, shape.as_ref(), &to_parry(&o.base_from_shape), o.shape.as_ref())
+                    .map(|d| d.distance as f64)
+                    .unwrap_or(0.0);
             if d <= self.clearance {
                 return Some(&o.name);
             }
@@ -198,7 +199,13 @@ impl Problem<'_> {
 
     /// A collision-free path from `start` to `goal`: the straight segment when it is free,
     /// otherwise RRT-Connect and shortcutting.
-    pub fn plan(&self, start: &Joints, goal: &Joints, params: &PlannerParams, seed: u64) -> Result<Vec<Joints>, PlanError> {
+    pub fn plan(
+        &self,
+        start: &Joints,
+        goal: &Joints,
+        params: &PlannerParams,
+        seed: u64,
+    ) -> Result<Vec<Joints>, PlanError> {
         if let Some(c) = self.world.collision(self.arm, start, self.opening, self.attached) {
             return Err(PlanError::StartInCollision(c));
         }
@@ -214,7 +221,13 @@ impl Problem<'_> {
         Ok(path)
     }
 
-    fn rrt_connect(&self, start: &Joints, goal: &Joints, p: &PlannerParams, rng: &mut StdRng) -> Result<Vec<Joints>, PlanError> {
+    fn rrt_connect(
+        &self,
+        start: &Joints,
+        goal: &Joints,
+        p: &PlannerParams,
+        rng: &mut StdRng,
+    ) -> Result<Vec<Joints>, PlanError> {
         let (lo, hi) = (self.arm.lower(), self.arm.upper());
         let mut a = Tree::new(*start);
         let mut b = Tree::new(*goal);
@@ -242,7 +255,8 @@ impl Problem<'_> {
         let near = tree.nearest(towards);
         let from = tree.nodes[near].0;
         let d = distance(&from, towards);
-        let to = if d <= step { *towards } else { std::array::from_fn(|k| from[k] + (towards[k] - from[k]) * step / d) };
+        let to =
+            if d <= step { *towards } else { std::array::from_fn(|k| from[k] + (towards[k] - from[k]) * step / d) };
         self.free(&from, &to).then(|| tree.add(to, near))
     }
 
@@ -286,7 +300,9 @@ impl Tree {
     }
 
     fn nearest(&self, q: &Joints) -> usize {
-        (0..self.nodes.len()).min_by(|&a, &b| distance(&self.nodes[a].0, q).total_cmp(&distance(&self.nodes[b].0, q))).unwrap()
+        (0..self.nodes.len())
+            .min_by(|&a, &b| distance(&self.nodes[a].0, q).total_cmp(&distance(&self.nodes[b].0, q)))
+            .unwrap()
     }
 
     /// Root to `node`.
@@ -306,9 +322,7 @@ impl Tree {
 fn parry_shape(p: &Primitive) -> (SharedShape, Isometry3<f64>) {
     let f = |x: f64| x as f32;
     match *p {
-        Primitive::Box { half_extents: h } => {
-            (SharedShape::cuboid(f(h.x), f(h.y), f(h.z)), Isometry3::identity())
-        }
+        Primitive::Box { half_extents: h } => (SharedShape::cuboid(f(h.x), f(h.y), f(h.z)), Isometry3::identity()),
         Primitive::Cylinder { radius, half_length } => (
             SharedShape::cylinder(f(half_length), f(radius)),
             Isometry3::rotation(Vector3::x() * std::f64::consts::FRAC_PI_2),

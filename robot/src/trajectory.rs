@@ -37,10 +37,7 @@ pub struct Limits {
 
 impl Limits {
     pub fn scaled(&self, fraction: f64) -> Limits {
-        Limits {
-            velocity: self.velocity.map(|v| v * fraction),
-            acceleration: self.acceleration.map(|a| a * fraction),
-        }
+        Limits { velocity: self.velocity.map(|v| v * fraction), acceleration: self.acceleration.map(|a| a * fraction) }
     }
 }
 

@@ -137,7 +137,8 @@ impl Scene {
         let mut cell = Cell::new(&scn.world.physics, &statics);
         if let (Some(urdf), Some(spec)) = (&scn.robot_urdf, &scn.world.robot) {
             // Objects that roll up to the arm rest against it, not inside it.
-            SimArm::insert(&mut cell, urdf, &spec.world_from_base(), &HOME, 0.0).expect("the URDF was checked on loading");
+            SimArm::insert(&mut cell, urdf, &spec.world_from_base(), &HOME, 0.0)
+                .expect("the URDF was checked on loading");
         }
         let bodies: Vec<_> =
             objects.iter().map(|o| cell.add_object(&scn.library.models[&o.model], &o.world_from_model)).collect();
