@@ -114,6 +114,10 @@ enum Command {
         /// Clear the table instead: pick every object in turn, the highest first.
         #[arg(long, conflicts_with = "object")]
         all: bool,
+        /// Drop only this library model (object 1) over the clutter region instead of the
+        /// world's clutter, as `eval pick` does for `single_success_rate`.
+        #[arg(long)]
+        model: Option<String>,
         /// Seed (default: the world file's).
         #[arg(long)]
         seed: Option<u64>,
@@ -153,7 +157,9 @@ fn main() -> std::process::ExitCode {
         Command::Locate { world, seed, models, json, out } => {
             locate_cmd::run(&world, seed, models, json, out.as_deref())
         }
-        Command::Pick { world, object, all: _, seed, json } => pick_cmd::run(&world, object, seed, json),
+        Command::Pick { world, object, all: _, model, seed, json } => {
+            pick_cmd::run(&world, object, model.as_deref(), seed, json)
+        }
         Command::Eval { what } => eval_cmd::run(what),
         Command::Bench { what } => bench::run(what),
     };

@@ -197,6 +197,9 @@ impl<'a> PickCell<'a> {
         };
         out.grasp = Some(plan.grasp_index);
         self.execute(&plan, body, &mut out);
+        if !out.placed {
+            self.recover();
+        }
         out.simulated_s = self.simulated_s - start_s;
         Ok(out)
     }
@@ -259,6 +262,20 @@ impl<'a> PickCell<'a> {
         }
     }
 
+    /// After a failed pick: opens the gripper and lifts straight up on the zed joint, which
+    /// leaves whatever the gripper was near and gives the next plan a free start.
+    fn recover(&mut self) {
+        self.grip(self.work.arm.max_opening());
+        let q = self.arm.joints(&self.cell);
+        let mut up = q;
+        up[0] = (q[0] + robot::pick::LIFT_M).min(self.work.arm.upper()[0]);
+        let limits = robot::trajectory::Limits {
+            velocity: self.work.arm.max_velocity(),
+            acceleration: self.work.arm.max_acceleration(),
+        };
+        self.follow(&robot::trajectory::Trajectory::piecewise(&[q, up], &limits.scaled(robot::pick::NEAR_SPEED)));
+    }
+
     /// Runs a trajectory through the joint motors; the worst tracking error.
     fn follow(&mut self, traj: &robot::trajectory::Trajectory) -> f64 {
         let n = (traj.duration() / self.dt()).ceil() as usize;
@@ -309,14 +326,22 @@ impl<'a> PickCell<'a> {
         c.coords.norm() < HELD_RADIUS_M && c.y.abs() < half
     }
 
-    /// At rest with its centre of mass over the inside of the first bin, below its walls' top.
+    /// Whether object `id` is in the bin now.
+    pub fn in_bin(&self, id: u32) -> bool {
+        self.body(id).is_ok_and(|(_, b)| self.inside_bin(b))
+    }
+
+    /// At rest with its centre of mass over the inside of the first bin's floor, no higher than
+    /// the bin is deep above its rim (so on the floor or on what already lies in the bin, not
+    /// balanced on a wall, which would put the centre of mass over the wall).
     pub fn inside_bin(&self, body: rapier3d::prelude::RigidBodyHandle) -> bool {
         let Some(bin) = self.scn.world.bins.first() else { return false };
         let b = &self.cell.world.bodies[body];
         let com = b.center_of_mass();
         let (dx, dy) = ((com.x as f64 - bin.centre_m[0]).abs(), (com.y as f64 - bin.centre_m[1]).abs());
         let resting = b.linvel().length() < 0.01;
-        resting && dx < bin.size_m[0] / 2.0 && dy < bin.size_m[1] / 2.0 && (com.z as f64) < bin.wall_m + bin.size_m[2]
+        let [sx, sy, depth] = bin.size_m;
+        resting && dx < sx / 2.0 && dy < sy / 2.0 && (com.z as f64) < bin.wall_m + 2.0 * depth
     }
 }
 
@@ -347,20 +372,39 @@ pub fn load(path: &std::path::Path) -> Result<(Scenario, Workcell)> {
     Ok((scn, work))
 }
 
-/// Picks every object of `scene` in turn, the highest first (as clearing a heap needs), each
-/// planned from the objects' poses at that moment; one outcome per object.
+/// Passes over the table when clearing it: an object that could not be picked is tried again
+/// once the others have gone.
+pub const CLEARING_PASSES: usize = 3;
+
+/// Clears the table: picks every object in turn, the highest first (as a heap needs), each
+/// planned from the objects' poses at that moment; objects that fail are tried again in later
+/// passes unless they came to rest inside the bin anyway. One outcome per object: its last.
 pub fn clear_scene(scn: &Scenario, work: &Workcell, scene: &Scene) -> Result<Vec<PickOutcome>> {
     let mut cell = PickCell::new(scn, work, scene)?;
-    let mut remaining: Vec<u32> = scene.objects.iter().map(|o| o.id).collect();
-    let mut outcomes = Vec::new();
-    while !remaining.is_empty() {
-        let height =
-            |id: &u32| cell.body(*id).map(|(_, b)| cell.cell.world.bodies[b].center_of_mass().z).unwrap_or(0.0);
-        let next = *remaining.iter().max_by(|a, b| height(a).total_cmp(&height(b))).expect("not empty");
-        remaining.retain(|&id| id != next);
-        outcomes.push(cell.pick(next, scene.seed.wrapping_mul(31).wrapping_add(next as u64))?);
+    let mut last: Vec<Option<PickOutcome>> = vec![None; scene.objects.len()];
+    for pass in 0..CLEARING_PASSES {
+        let mut todo: Vec<u32> = scene
+            .objects
+            .iter()
+            .map(|o| o.id)
+            .filter(|id| last[*id as usize - 1].as_ref().is_none_or(|o| !o.placed && !cell.in_bin(*id)))
+            .collect();
+        let mut progress = false;
+        while !todo.is_empty() {
+            let height =
+                |id: &u32| cell.body(*id).map(|(_, b)| cell.cell.world.bodies[b].center_of_mass().z).unwrap_or(0.0);
+            let next = *todo.iter().max_by(|a, b| height(a).total_cmp(&height(b))).expect("not empty");
+            todo.retain(|&id| id != next);
+            let seed = scene.seed.wrapping_mul(31).wrapping_add(next as u64 + 1000 * pass as u64);
+            let outcome = cell.pick(next, seed)?;
+            progress |= outcome.placed;
+            last[next as usize - 1] = Some(outcome);
+        }
+        if !progress {
+            break;
+        }
     }
-    Ok(outcomes)
+    Ok(last.into_iter().flatten().collect())
 }
 
 /// The scenario with its clutter replaced by one `model`, dropped over the same region.

@@ -1,13 +1,26 @@
 //! `marvin pick`: settle a scene, pick one object from its true pose, report what happened.
 
-use marvin::pick::{PickCell, PickOutcome, clear_scene, load};
+use marvin::pick::{PickCell, PickOutcome, clear_scene, load, single_object_scenario};
 use sim::Scene;
 use std::path::Path;
 use std::time::Instant;
 
 /// Picks `object`, or with `None` every object in turn.
-pub fn run(world: &Path, object: Option<u32>, seed: Option<u64>, json: bool) -> anyhow::Result<()> {
-    let (scn, work) = load(world)?;
+pub fn run(
+    world: &Path,
+    object: Option<u32>,
+    model: Option<&str>,
+    seed: Option<u64>,
+    json: bool,
+) -> anyhow::Result<()> {
+    let (mut scn, work) = load(world)?;
+    if let Some(model) = model {
+        if scn.library.get(model).is_none() {
+            let known: Vec<&str> = scn.library.names().collect();
+            anyhow::bail!("no model `{model}` in the library (it has: {})", known.join(", "));
+        }
+        scn = single_object_scenario(&scn, model);
+    }
     let seed = seed.unwrap_or(scn.world.seed);
     let scene = Scene::settle(&scn, seed);
     let started = Instant::now();

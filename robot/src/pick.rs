@@ -17,7 +17,7 @@ pub const APPROACH_M: f64 = 0.08;
 /// How high the object is lifted before the transfer, and the gripper over the bin, metres.
 pub const LIFT_M: f64 = 0.10;
 /// Extra jaw opening beyond the object's width while approaching, metres.
-pub const OPEN_MARGIN_M: f64 = 0.025;
+pub const OPEN_MARGIN_M: f64 = 0.016;
 /// The object is let go this far above where it would rest on the bin floor, metres.
 pub const DROP_M: f64 = 0.01;
 /// Clearance of free moves, and of the short straight moves near the object, metres.
@@ -100,16 +100,32 @@ pub fn grasp_variants(base_from_grasp: &Isometry3<f64>) -> [Isometry3<f64>; 4] {
     ]
 }
 
-/// Plans the whole pick; tries the grasps in order and returns the first that works end to end.
+/// How much shallower than written a grasp may be taken, metres (tried in order): a tilted
+/// object or a low one can put the fingertips on the table at the written depth.
+pub const SHALLOWER_M: [f64; 3] = [0.0, 0.006, 0.012];
+
+/// Plans the whole pick; tries the grasps in order, each at the depths of [`SHALLOWER_M`], and
+/// returns the first that works end to end.
 pub fn plan_pick(arm: &Arm, ik: &Ik, req: &PickRequest) -> Result<PickPlan, PickError> {
     let mut reasons = Vec::new();
-    for (i, grasp) in req.grasps.iter().enumerate() {
-        match plan_with_grasp(arm, ik, req, grasp) {
-            Ok((steps, base_from_release)) => {
-                return Ok(PickPlan { grasp_index: i, grasp: *grasp, base_from_release, steps });
+    for (i, written) in req.grasps.iter().enumerate() {
+        let mut why = String::new();
+        for shallower in SHALLOWER_M {
+            let approach = written.base_from_gripper.rotation * Vector3::z();
+            let grasp = GraspCandidate {
+                base_from_gripper: shifted(&written.base_from_gripper, -shallower * approach),
+                width: written.width,
+            };
+            match plan_with_grasp(arm, ik, req, &grasp) {
+                Ok((steps, base_from_release)) => {
+                    return Ok(PickPlan { grasp_index: i, grasp, base_from_release, steps });
+                }
+                // The reason at the written depth is the telling one.
+                Err(e) if why.is_empty() => why = e,
+                Err(_) => {}
             }
-            Err(why) => reasons.push(format!("grasp {i}: {why}")),
         }
+        reasons.push(format!("grasp {i}: {why}"));
     }
     Err(PickError::NoGrasp { reasons })
 }
