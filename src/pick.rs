@@ -83,16 +83,7 @@ impl<'a> PickCell<'a> {
     pub fn new(scn: &'a Scenario, work: &'a Workcell, scene: &Scene) -> Result<PickCell<'a>> {
         let statics = static_boxes(&scn.world);
         let mut cell = Cell::new(&scn.world.physics, &statics);
-        // Rapier's default 20 mm of speculative contact lets fingers passing a few millimetres
-        // from an object push it without touching (measured: an L-bracket 5.8 mm from a finger
-        // was set rocking). 2 mm keeps contacts predictive at these speeds without reaching out.
-        cell.world.integration_parameters.normalized_prediction_distance = 0.002;
-        if let Ok(v) = std::env::var("ITERS") {
-            cell.world.integration_parameters.num_solver_iterations = v.parse().unwrap();
-        }
-        if let Ok(v) = std::env::var("STAB") {
-            cell.world.integration_parameters.num_internal_stabilization_iterations = v.parse().unwrap();
-        }
+        sim::arm::configure_for_grasping(&mut cell);
         let objects = scene
             .objects
             .iter()
@@ -216,20 +207,6 @@ impl<'a> PickCell<'a> {
                     }
                 }
                 Action::Grip { opening } => self.grip(*opening),
-            }
-            if std::env::var("DBG").is_ok() {
-                let g = self.arm.world_from_gripper(&self.cell);
-                let c = g.inverse() * self.cell.pose(body).translation.vector;
-                let com = self.cell.world.bodies[body].center_of_mass();
-                let cc = g.inverse() * Point3::new(com.x as f64, com.y as f64, com.z as f64);
-                eprintln!(
-                    "after {}: object origin in gripper {:?} com {:?} opening {:.4} tcp {:?}",
-                    step.label,
-                    c.as_slice(),
-                    cc.coords.as_slice(),
-                    self.arm.opening(&self.cell),
-                    g.translation.vector.as_slice()
-                );
             }
             match step.label {
                 "close" => {
