@@ -104,29 +104,40 @@ pub fn grasp_variants(base_from_grasp: &Isometry3<f64>) -> [Isometry3<f64>; 4] {
 /// object or a low one can put the fingertips on the table at the written depth.
 pub const SHALLOWER_M: [f64; 3] = [0.0, 0.006, 0.012];
 
-/// Plans the whole pick; tries the grasps in order, each at the depths of [`SHALLOWER_M`], and
-/// returns the first that works end to end.
+/// Tilts of a grasp about its jaw axis, degrees (tried in order after every grasp as written).
+/// Turning about the jaw axis keeps the pads flat on the same two faces, so the hold is the
+/// same; the hand comes in at a slant, which reaches past the arm's straight-down reach, keeps
+/// clear of a neighbour on one side, and gets nearer the base than the elbow allows upright.
+pub const TILTS_DEG: [f64; 5] = [0.0, 20.0, -20.0, 40.0, -40.0];
+
+/// Plans the whole pick: tries the grasps in order, each at the depths of [`SHALLOWER_M`], then
+/// all of them again at each tilt of [`TILTS_DEG`]; returns the first that works end to end.
 pub fn plan_pick(arm: &Arm, ik: &Ik, req: &PickRequest) -> Result<PickPlan, PickError> {
     let mut reasons = Vec::new();
-    for (i, written) in req.grasps.iter().enumerate() {
-        let mut why = String::new();
-        for shallower in SHALLOWER_M {
-            let approach = written.base_from_gripper.rotation * Vector3::z();
-            let grasp = GraspCandidate {
-                base_from_gripper: shifted(&written.base_from_gripper, -shallower * approach),
-                width: written.width,
-            };
-            match plan_with_grasp(arm, ik, req, &grasp) {
-                Ok((steps, base_from_release)) => {
-                    return Ok(PickPlan { grasp_index: i, grasp, base_from_release, steps });
+    for tilt in TILTS_DEG {
+        let turn = Isometry3::rotation(Vector3::y() * tilt.to_radians());
+        for (i, written) in req.grasps.iter().enumerate() {
+            let tilted = written.base_from_gripper * turn;
+            let mut why = String::new();
+            for shallower in SHALLOWER_M {
+                let approach = tilted.rotation * Vector3::z();
+                let grasp =
+                    GraspCandidate { base_from_gripper: shifted(&tilted, -shallower * approach), width: written.width };
+                match plan_with_grasp(arm, ik, req, &grasp) {
+                    Ok((steps, base_from_release)) => {
+                        return Ok(PickPlan { grasp_index: i, grasp, base_from_release, steps });
+                    }
+                    // The reason at the written depth is the telling one.
+                    Err(e) if why.is_empty() => why = e,
+                    Err(_) => {}
                 }
-                // The reason at the written depth is the telling one.
-                Err(e) if why.is_empty() => why = e,
-                Err(_) => {}
+            }
+            if tilt == 0.0 {
+                reasons.push(format!("grasp {i}: {why}"));
             }
         }
-        reasons.push(format!("grasp {i}: {why}"));
     }
+    reasons.push(format!("nor tilted by {:?} deg about the jaw axis", &TILTS_DEG[1..]));
     Err(PickError::NoGrasp { reasons })
 }
 
