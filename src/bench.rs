@@ -18,6 +18,23 @@ pub enum BenchTarget {
     /// without slicing (`--slices 1`), with its stages `strings`, `rectify`, `pmf`, `geom2d`,
     /// `geom3d`.
     Vision(BenchArgs),
+    /// Simulation speed of the arm at work among 10 objects: the default world's clutter plus
+    /// another block, L-bracket and T-piece, cleared by picking (`marvin pick --all`), one
+    /// thread. `realtime_factor`: simulated seconds per wall-clock second, median over `--runs`
+    /// seeded scenes.
+    Physics(PhysicsArgs),
+}
+
+#[derive(Args)]
+pub struct PhysicsArgs {
+    #[arg(long, default_value = "worlds/widgets.toml")]
+    world: PathBuf,
+    /// Scenes cleared (seeds 1..=runs).
+    #[arg(long, default_value_t = 5)]
+    runs: u64,
+    /// Print JSON: `{"physics": {"realtime_factor": X, ...}}`.
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Args)]
@@ -73,8 +90,59 @@ fn report(args: &BenchArgs, results: &[(&str, f64)], what: &str) -> anyhow::Resu
     }
 }
 
+/// The scenario with three more objects in its clutter (10 in the default world).
+fn ten_objects(mut scn: Scenario) -> Scenario {
+    if let Some(clutter) = &mut scn.world.clutter {
+        for model in ["block", "l_bracket", "t_piece"] {
+            clutter.objects.push(sim::world::ClutterItem { model: model.into(), count: 1 });
+        }
+    }
+    scn
+}
+
+fn physics(args: &PhysicsArgs) -> anyhow::Result<()> {
+    let (scn, work) = marvin::pick::load(&args.world)?;
+    let scn = ten_objects(scn);
+    let mut factors = Vec::new();
+    let (mut simulated, mut wall, mut placed, mut picks) = (0.0, 0.0, 0, 0);
+    for seed in 1..=args.runs.max(1) {
+        let scene = Scene::settle(&scn, seed);
+        let started = Instant::now();
+        let outcomes = marvin::pick::clear_scene(&scn, &work, &scene)?;
+        let w = started.elapsed().as_secs_f64();
+        let s: f64 = outcomes.iter().map(|o| o.simulated_s).sum();
+        factors.push(s / w);
+        (simulated, wall) = (simulated + s, wall + w);
+        placed += outcomes.iter().filter(|o| o.placed).count();
+        picks += outcomes.len();
+    }
+    factors.sort_by(f64::total_cmp);
+    let median = factors[factors.len() / 2];
+    if args.json {
+        let v = serde_json::json!({ "physics": {
+            "realtime_factor": median,
+            "objects": scene_size(&scn),
+            "simulated_s": simulated,
+            "wall_s": wall,
+            "placed": placed,
+            "picks": picks,
+        }});
+        return crate::emit(&v.to_string());
+    }
+    crate::emit(&format!(
+        "physics: realtime factor {median:.1} (median of {} scenes of {} objects cleared; {placed}/{picks} placed, {simulated:.0} s simulated in {wall:.1} s)",
+        factors.len(),
+        scene_size(&scn)
+    ))
+}
+
+fn scene_size(scn: &Scenario) -> usize {
+    scn.world.objects.len() + scn.world.clutter.as_ref().map_or(0, |c| c.objects.iter().map(|o| o.count as usize).sum())
+}
+
 pub fn run(target: BenchTarget) -> anyhow::Result<()> {
     match target {
+        BenchTarget::Physics(args) => physics(&args),
         BenchTarget::Render(args) => {
             let s = setup(&args.world)?;
             let light = Light::from(&s.scn.world.light);

@@ -163,8 +163,14 @@ impl<'a> PickCell<'a> {
 
     /// Plans and executes the pick of object `id` into the first bin.
     pub fn pick(&mut self, id: u32, seed: u64) -> Result<PickOutcome> {
-        let (model, body) = self.body(id)?;
         let req = self.request(id, seed)?;
+        let plan = plan_pick(&self.work.arm, &self.work.ik, &req);
+        self.run_plan(id, plan)
+    }
+
+    /// Executes a pick plan for object `id` (or reports why there is none) and judges it.
+    pub fn run_plan(&mut self, id: u32, plan: Result<PickPlan, robot::pick::PickError>) -> Result<PickOutcome> {
+        let (model, body) = self.body(id)?;
         let start_s = self.simulated_s;
         let mut out = PickOutcome {
             object: id,
@@ -179,7 +185,7 @@ impl<'a> PickCell<'a> {
             worst_tracking_step: None,
             closed_opening_mm: None,
         };
-        let plan = match plan_pick(&self.work.arm, &self.work.ik, &req) {
+        let plan = match plan {
             Ok(p) => p,
             Err(e) => {
                 out.detail = Some(e.to_string());

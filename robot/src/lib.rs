@@ -4,6 +4,13 @@
 //!   kinematics over the link tree.
 //! - [`ik`]: the closed-form inverse kinematics (both elbow solutions, both wrist-pitch signs,
 //!   limits respected; an unreachable pose is an error that says why).
+//! - [`trajectory`]: rest-to-rest strokes under trapezoidal profiles within the URDF's velocity
+//!   limits and derived acceleration limits.
+//! - [`planner`]: the arm's link shapes against the scene's obstacles (parry), RRT-Connect with
+//!   shortcutting, every segment checked densely.
+//! - [`pick`]: the pick plan -- approach above the grasp, descend, close, lift, move above the
+//!   bin, lower, release, retreat -- choosing among a model's grasps, their equivalent holds,
+//!   depths and tilts.
 //!
 //! It depends on neither `sim` nor `vision`.
 

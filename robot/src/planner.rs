@@ -352,3 +352,104 @@ pub fn to_parry(iso: &Isometry3<f64>) -> Pose {
     let rotation = Rotation::from_xyzw(q.i as f32, q.j as f32, q.k as f32, q.w as f32).normalize();
     Pose::from_parts(Vector::new(t.x as f32, t.y as f32, t.z as f32), rotation)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::arm::tests::umi;
+    use crate::trajectory::{Limits, Trajectory};
+
+    fn boxed(name: &str, centre: [f64; 3], half: [f32; 3]) -> Obstacle {
+        Obstacle {
+            name: name.into(),
+            shape: SharedShape::cuboid(half[0], half[1], half[2]),
+            base_from_shape: Isometry3::translation(centre[0], centre[1], centre[2]),
+        }
+    }
+
+    /// A table top at z = 0 and a wall standing between the arm's two sides.
+    fn scene() -> Vec<Obstacle> {
+        vec![boxed("table", [0.3, 0.0, -0.05], [0.6, 0.6, 0.05]), boxed("wall", [0.3, 0.0, 0.15], [0.08, 0.01, 0.15])]
+    }
+
+    /// Every link shape against every obstacle by parry's intersection test, independently of
+    /// the planner's distance queries.
+    fn touches(arm: &Arm, obstacles: &[Obstacle], q: &Joints, opening: f64) -> Option<String> {
+        let poses = arm.link_poses(q, opening);
+        let root = arm.joints[arm.arm_joints[0]].parent;
+        for (i, link) in arm.links.iter().enumerate().filter(|(i, _)| *i != root) {
+            for s in &link.shapes {
+                let (shape, parry_from) = parry_shape(&s.primitive);
+                let pose = to_parry(&(poses[i] * s.link_from_shape * parry_from));
+                for o in obstacles {
+                    let hit = parry3d::query::intersection_test(
+                        &pose,
+                        shape.as_ref(),
+                        &to_parry(&o.base_from_shape),
+                        o.shape.as_ref(),
+                    );
+                    if hit.is_ok_and(|h| h.intersecting) {
+                        return Some(format!("{} hits {}", link.name, o.name));
+                    }
+                }
+            }
+        }
+        None
+    }
+
+    #[test]
+    fn paths_around_a_wall_are_collision_free_along_the_whole_trajectory() {
+        let arm = umi();
+        let world = CollisionWorld::new(&arm, scene(), 0.005);
+        let problem = Problem { arm: &arm, world: &world, opening: 0.05, attached: None };
+        // Gripper low on one side of the wall, then low on the other: the straight joint move
+        // would sweep the hand through it.
+        let start = [0.33, -0.55, 0.9, 0.0, 0.0, 0.0];
+        let goal = [0.33, 0.55, -0.9, 0.0, 0.0, 0.0];
+        assert!(
+            world.segment_collision(&arm, &start, &goal, 0.05, None).is_some(),
+            "the test needs a blocked straight line"
+        );
+        let path = problem.plan(&start, &goal, &PlannerParams::default(), 3).unwrap();
+        assert!(path.len() > 2 && path[0] == start && *path.last().unwrap() == goal);
+        let limits = Limits { velocity: arm.max_velocity(), acceleration: arm.max_acceleration() };
+        let traj = Trajectory::piecewise(&path, &limits);
+        let steps = (traj.duration() / 1e-3).ceil() as usize;
+        let (lo, hi) = (arm.lower(), arm.upper());
+        let mut prev_v = [0.0; 6];
+        for i in 0..=steps {
+            let (q, v) = traj.sample(i as f64 * 1e-3);
+            assert_eq!(touches(&arm, &scene(), &q, 0.05), None, "at t = {} ms", i);
+            for k in 0..6 {
+                assert!(q[k] >= lo[k] - 1e-9 && q[k] <= hi[k] + 1e-9, "joint {k} out of its limits");
+                assert!(v[k].abs() <= limits.velocity[k] * (1.0 + 1e-9), "joint {k} too fast");
+                assert!(((v[k] - prev_v[k]) / 1e-3).abs() <= limits.acceleration[k] * (1.0 + 1e-6) + 1e-6);
+            }
+            prev_v = v;
+        }
+    }
+
+    #[test]
+    fn a_start_inside_an_obstacle_is_refused_with_the_parts_named() {
+        let arm = umi();
+        let world = CollisionWorld::new(&arm, scene(), 0.0);
+        let problem = Problem { arm: &arm, world: &world, opening: 0.05, attached: None };
+        let sunk = [0.2, 1.5, 0.5, 0.0, 0.0, 0.0]; // the tool 8.5 cm into the table, away from the wall
+        let err = problem.plan(&sunk, &[0.5, 0.0, 0.5, 0.0, 0.0, 0.0], &PlannerParams::default(), 1).unwrap_err();
+        assert!(matches!(err, PlanError::StartInCollision(_)), "{err}");
+        assert!(err.to_string().contains("table"), "{err}");
+    }
+
+    #[test]
+    fn a_held_object_is_checked_too() {
+        let arm = umi();
+        let world = CollisionWorld::new(&arm, scene(), 0.0);
+        // Straight down, tool centre 10 cm over the table: free alone; a 30 cm long bar held
+        // vertically reaches through the table.
+        let q = [0.385, 0.3, 0.6, 0.0, 0.0, 0.0];
+        assert_eq!(world.collision(&arm, &q, 0.05, None), None);
+        let bar = Attached { shape: SharedShape::cuboid(0.01, 0.01, 0.15), gripper_from_shape: Isometry3::identity() };
+        let hit = world.collision(&arm, &q, 0.05, Some(&bar)).expect("the bar reaches the table");
+        assert_eq!((hit.part.as_str(), hit.obstacle.as_str()), ("held object", "table"));
+    }
+}

@@ -1,0 +1,104 @@
+//! The arm end to end: the simulated arm agrees with the kinematics the planner uses, physical
+//! picks succeed at the rates on a few seeded scenes, failures are caught by the physics
+//! and never counted as successes, and a world whose robot URDF is missing is refused.
+
+use marvin::pick::{PickCell, clear_scene, load, pickable_models, single_object_scenario};
+use nalgebra::Isometry3;
+use rand::rngs::StdRng;
+use rand::{RngExt, SeedableRng};
+use robot::pick::{Action, plan_pick};
+use sim::Scene;
+use std::path::Path;
+
+fn world() -> &'static Path {
+    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/worlds/widgets.toml"))
+}
+
+#[test]
+fn the_simulated_arm_stands_where_the_planner_computes_it() {
+    let (scn, work) = load(world()).unwrap();
+    let mut rng = StdRng::seed_from_u64(5);
+    let (lo, hi) = (work.arm.lower(), work.arm.upper());
+    for _ in 0..20 {
+        let q: robot::Joints = std::array::from_fn(|k| rng.random_range(lo[k]..hi[k]));
+        let mut cell = sim::physics::Cell::new(&scn.world.physics, &[]);
+        let arm = sim::arm::SimArm::insert(&mut cell, &work.urdf, &work.world_from_base, &q, 0.03).unwrap();
+        let simulated = arm.world_from_gripper(&cell);
+        let computed: Isometry3<f64> = work.world_from_base * work.arm.base_from_gripper(&q);
+        let dp = (simulated.translation.vector - computed.translation.vector).norm();
+        assert!(dp < 1e-5 && simulated.rotation.angle_to(&computed.rotation) < 1e-5, "{q:?}: {dp} m apart");
+        assert!((arm.opening(&cell) - 0.03).abs() < 1e-6);
+    }
+}
+
+#[test]
+fn single_objects_are_picked_and_placed() {
+    let (scn, work) = load(world()).unwrap();
+    let mut outcomes = Vec::new();
+    for model in pickable_models(&scn) {
+        let one = single_object_scenario(&scn, &model);
+        for seed in 1..=3 {
+            let scene = Scene::settle(&one, seed);
+            let out = PickCell::new(&one, &work, &scene).unwrap().pick(1, seed).unwrap();
+            if out.placed {
+                // Held between the fingers, at the width the grasp says.
+                assert!(out.held && out.closed_opening_mm.unwrap() > 5.0, "{out:?}");
+            }
+            outcomes.push(out);
+        }
+    }
+    let placed = outcomes.iter().filter(|o| o.placed).count();
+    let failed: Vec<_> = outcomes.iter().filter(|o| !o.placed).collect();
+    assert!(placed as f64 >= 0.95 * outcomes.len() as f64, "{placed}/{}: {failed:?}", outcomes.len());
+}
+
+#[test]
+fn clutter_is_cleared_into_the_bin() {
+    let (scn, work) = load(world()).unwrap();
+    let mut outcomes = Vec::new();
+    for seed in [1, 2] {
+        outcomes.extend(clear_scene(&scn, &work, &Scene::settle(&scn, seed)).unwrap());
+    }
+    assert_eq!(outcomes.len(), 14, "one outcome per object");
+    let placed = outcomes.iter().filter(|o| o.placed).count();
+    let failed: Vec<_> = outcomes.iter().filter(|o| !o.placed).collect();
+    assert!(placed as f64 >= 0.90 * outcomes.len() as f64, "{placed}/14: {failed:?}");
+}
+
+#[test]
+fn a_grip_that_never_closes_is_a_slip_not_a_success() {
+    let (scn, work) = load(world()).unwrap();
+    let one = single_object_scenario(&scn, "block");
+    let scene = Scene::settle(&one, 2);
+    let mut cell = PickCell::new(&one, &work, &scene).unwrap();
+    let mut plan = plan_pick(&work.arm, &work.ik, &cell.request(1, 2).unwrap()).unwrap();
+    // Sabotage: "close" leaves the jaws as wide open as they came in.
+    let open = plan.steps.iter().find_map(|s| match s.action {
+        Action::Grip { opening } if s.label == "open" => Some(opening),
+        _ => None,
+    });
+    for step in &mut plan.steps {
+        if step.label == "close" {
+            step.action = Action::Grip { opening: open.unwrap() };
+        }
+    }
+    let out = cell.run_plan(1, Ok(plan)).unwrap();
+    assert!(!out.placed && !out.held, "{out:?}");
+    assert_eq!(out.result, "slip", "{out:?}");
+    assert!(!cell.in_bin(1), "the block stayed on the table");
+}
+
+#[test]
+fn a_world_whose_robot_urdf_is_missing_is_refused_with_the_line() {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("missing_urdf");
+    std::fs::create_dir_all(&dir).unwrap();
+    let text = std::fs::read_to_string(world()).unwrap().replace("../urdf/umi_rtx.urdf", "nowhere.urdf");
+    let line = text.lines().position(|l| l.contains("nowhere.urdf")).unwrap() + 1;
+    let path = dir.join("w.toml");
+    std::fs::write(&path, text).unwrap();
+    let err = load(&path).err().expect("refused").to_string();
+    assert!(
+        err.contains(&format!("w.toml:{line}")) && err.contains("robot.urdf") && err.contains("nowhere.urdf"),
+        "{err}"
+    );
+}
