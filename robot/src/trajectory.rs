@@ -69,12 +69,13 @@ impl Trajectory {
             if ds <= 0.0 {
                 continue;
             }
-            for k in 0..6 {
-                // dq_k/ds on this piece; the path speed must keep |dq_k/dt| within the limits.
-                let slope = (w[1][k] - w[0][k]).abs() / ds;
+            let (from, to) = (&w[0], &w[1]);
+            for ((a, b), (v_max, a_max)) in from.iter().zip(to).zip(limits.velocity.iter().zip(&limits.acceleration)) {
+                // dq/ds on this piece; the path speed must keep |dq/dt| within the limits.
+                let slope = (b - a).abs() / ds;
                 if slope > 0.0 {
-                    speed = speed.min(limits.velocity[k] / slope);
-                    accel = accel.min(limits.acceleration[k] / slope);
+                    speed = speed.min(v_max / slope);
+                    accel = accel.min(a_max / slope);
                 }
             }
         }
