@@ -87,7 +87,11 @@ impl<'a> PickCell<'a> {
         let objects = scene
             .objects
             .iter()
-            .map(|o| (o.id, o.model.clone(), cell.add_object(&scn.library.models[&o.model], &o.world_from_model)))
+            .map(|o| {
+                let body = cell.add_object(&scn.library.models[&o.model], &o.world_from_model);
+                sim::arm::hold_without_ccd(&mut cell, body);
+                (o.id, o.model.clone(), body)
+            })
             .collect();
         let arm = SimArm::insert(&mut cell, &work.urdf, &work.world_from_base, &HOME, 0.0)?;
         let mut pc = PickCell { scn, work, cell, arm, objects, simulated_s: 0.0 };

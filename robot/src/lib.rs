@@ -11,6 +11,7 @@
 //! - [`pick`]: the pick plan -- approach above the grasp, descend, close, lift, move above the
 //!   bin, lower, release, retreat -- choosing among a model's grasps, their equivalent holds,
 //!   depths and tilts.
+//! - [`tool`]: tools held in the gripper (the calibration flag), from their URDF.
 //!
 //! It depends on neither `sim` nor `vision`.
 
@@ -18,6 +19,7 @@ pub mod arm;
 pub mod ik;
 pub mod pick;
 pub mod planner;
+pub mod tool;
 pub mod trajectory;
 
 pub use arm::{Arm, ArmError, Joints};

@@ -42,11 +42,23 @@ pub enum SimArmError {
 ///   finger was set rocking);
 /// - two Gauss-Seidel passes per substep: with one, a wedge held by its end faces crept out of
 ///   the grip during transfers (4 of 6 seeded single-wedge picks dropped; with two, none did, for
-///   a few per cent of simulation speed -- doubling substeps instead cost a third of it).
+///   a few per cent of simulation speed -- doubling substeps instead cost a third of it);
+/// - no contact recycling: rapier keeps a pair's contact points while the pair has moved less
+///   than 5 cm (its default), which let a flag held by its edge creep 8 mm and turn 7 deg in the
+///   jaws while the arm swung it; recomputed every step, 2 mm and 2 deg.
 pub fn configure_for_grasping(cell: &mut Cell) {
     let ip = &mut cell.world.integration_parameters;
     ip.normalized_prediction_distance = 0.002;
     ip.num_internal_pgs_iterations = 2;
+    ip.contact_recycling = false;
+}
+
+/// Turns off continuous collision detection for a body the fingers will hold: with it, rapier
+/// clamped the motion of a 4 mm flag squeezed between the pads until it slipped out (dropped
+/// after 2 s of arm motion; without it, held). Objects dropped at these heights and speeds move
+/// less than their thickness per step, so nothing tunnels.
+pub fn hold_without_ccd(cell: &mut Cell, body: RigidBodyHandle) {
+    cell.world.bodies[body].enable_ccd(false);
 }
 
 /// Handles of the arm's parts in the cell.
