@@ -195,12 +195,11 @@ fn closest_params(p: &Point3<f64>, u: &Vector3<f64>, q: &Point3<f64>, v: &Vector
     ((b * e - d) / den, (e - b * d) / den)
 }
 
-/// Whether a fragment of length `frag` whose closest approach to its partner falls at `t` (from
-/// its start, in either sense) can lie on a model line of length `len` whose closest approach
-/// falls at `m`: the fragment is some stretch of the model line.
+/// Whether a fragment of length `frag` whose closest approach to its partner falls at `t` from
+/// its start can lie, running the same way, on a model line of length `len` whose closest
+/// approach falls at `m`: the fragment is some stretch of the model line.
 fn fits_along(t: f64, frag: f64, m: f64, len: f64, tol: f64) -> bool {
-    let fits = |t: f64| t >= m - (len - frag) - tol && t <= m + tol;
-    frag <= len + tol && (fits(t) || fits(frag - t))
+    frag <= len + tol && t >= m - (len - frag) - tol && t <= m + tol
 }
 
 /// How a transformed model line and a scene line agree: the length of the scene line lying along
@@ -295,22 +294,72 @@ struct FocusPair {
 }
 
 /// Focus lines (longest first) and, for each, its feature group: the lines not near-parallel.
+/// A pair that the model's own symmetry maps onto a pair already tabled, or the same two lines
+/// the other way round, is left out: the hypotheses it would give are the same poses (up to
+/// the symmetry, which is as correct), and each costs a support evaluation.
 fn focus_pairs(model: &MatcherModel, p: &MatchParams) -> Vec<FocusPair> {
     let mut order: Vec<usize> = (0..model.lines.len()).collect();
     order.sort_by(|&a, &b| model.lines[b].len.total_cmp(&model.lines[a].len));
-    let mut out = Vec::new();
+    let mut out: Vec<FocusPair> = Vec::new();
     for &i in order.iter().take(p.focus_lines) {
         for k in 0..model.lines.len() {
             let (li, lk) = (&model.lines[i], &model.lines[k]);
             let angle = line_angle(&li.dir, &lk.dir);
-            if k != i && angle > 0.35 {
-                let (at_focus, at_partner) = closest_params(&li.a, &li.dir, &lk.a, &lk.dir);
-                let separation = separation(&li.a, &li.dir, &lk.a, &lk.dir);
-                out.push(FocusPair { focus: i, partner: k, angle, separation, at_focus, at_partner });
+            if k == i || angle <= 0.35 || out.iter().any(|f| f.focus == k && f.partner == i) {
+                continue;
+            }
+            let (at_focus, at_partner) = closest_params(&li.a, &li.dir, &lk.a, &lk.dir);
+            let separation = separation(&li.a, &li.dir, &lk.a, &lk.dir);
+            let pair = FocusPair { focus: i, partner: k, angle, separation, at_focus, at_partner };
+            if !out.iter().any(|f| symmetric_images(model, f, &pair)) {
+                out.push(pair);
             }
         }
     }
     out
+}
+
+/// Whether a rigid motion that takes pair `b`'s lines onto pair `a`'s (ends to ends) maps the
+/// whole wireframe onto itself.
+fn symmetric_images(model: &MatcherModel, a: &FocusPair, b: &FocusPair) -> bool {
+    const EXACT: f64 = 1e-6;
+    let congruent = (a.angle - b.angle).abs() < EXACT
+        && (a.separation - b.separation).abs() < EXACT
+        && (model.lines[a.focus].len - model.lines[b.focus].len).abs() < EXACT
+        && (model.lines[a.partner].len - model.lines[b.partner].len).abs() < EXACT;
+    if !congruent {
+        return false;
+    }
+    // Either end of each line may map onto either end of its image.
+    let ends = |s: &Seg| [(s.a, s.b), (s.b, s.a)];
+    let (af, ap) = (&model.lines[a.focus], &model.lines[a.partner]);
+    for (fa, fb) in ends(&model.lines[b.focus]) {
+        for (pa, pb) in ends(&model.lines[b.partner]) {
+            let from = Seg::new(fa, fb);
+            let dirs = [
+                DirectionPair { model: from.dir, scene: af.dir, weight: 1.0 },
+                DirectionPair { model: Seg::new(pa, pb).dir, scene: ap.dir, weight: 1.0 },
+            ];
+            let points = [
+                PointOnLine { scene: af.a, model_point: fa, model_direction: from.dir, weight: 1.0 },
+                PointOnLine { scene: ap.a, model_point: pa, model_direction: Seg::new(pa, pb).dir, weight: 1.0 },
+                PointOnLine { scene: af.b, model_point: fa, model_direction: from.dir, weight: 1.0 },
+                PointOnLine { scene: ap.b, model_point: pa, model_direction: Seg::new(pa, pb).dir, weight: 1.0 },
+            ];
+            let Some(t) = pose_from_lines(&dirs, &points) else { continue };
+            let maps_onto_itself = model.lines.iter().all(|l| {
+                let (ta, tb) = (t * l.a, t * l.b);
+                model.lines.iter().any(|m| {
+                    ((m.a - ta).norm() < 1e-5 && (m.b - tb).norm() < 1e-5)
+                        || ((m.a - tb).norm() < 1e-5 && (m.b - ta).norm() < 1e-5)
+                })
+            });
+            if maps_onto_itself {
+                return true;
+            }
+        }
+    }
+    false
 }
 
 /// Finds the instances of `model` among `scene` lines (in the `cam` frame).
@@ -430,18 +479,22 @@ fn best_hypotheses(
                 }
                 let (mi, mk) = (&model.lines[f.focus], &model.lines[f.partner]);
                 // Each fragment must fit along its model line with the closest approach where the
-                // model has it (with slack for the ends stereo loses).
+                // model has it (with slack for the ends stereo loses); that fixes which way round
+                // each scene line runs, and the model pair's cosine sign must agree.
                 let slack = 4.0 * p.support_distance;
-                if !fits_along(tj, sj.len, f.at_focus, mi.len, slack)
-                    || !fits_along(tl, sl.len, f.at_partner, mk.len, slack)
-                {
-                    continue;
-                }
-                // The scene directions' signs: the model pair's cosine sign fixes one given the other.
                 let same = mi.dir.dot(&mk.dir) >= 0.0;
                 for sign_j in [1.0, -1.0] {
+                    let tj_from_start = if sign_j > 0.0 { tj } else { sj.len - tj };
+                    if !fits_along(tj_from_start, sj.len, f.at_focus, mi.len, slack) {
+                        continue;
+                    }
                     let vj = sj.dir * sign_j;
-                    let vl = if (vj.dot(&sl.dir) >= 0.0) == same { sl.dir } else { -sl.dir };
+                    let sign_l = if (vj.dot(&sl.dir) >= 0.0) == same { 1.0 } else { -1.0 };
+                    let tl_from_start = if sign_l > 0.0 { tl } else { sl.len - tl };
+                    if !fits_along(tl_from_start, sl.len, f.at_partner, mk.len, slack) {
+                        continue;
+                    }
+                    let vl = sl.dir * sign_l;
                     let dirs = [
                         DirectionPair { model: mi.dir, scene: vj, weight: 1.0 },
                         DirectionPair { model: mk.dir, scene: vl, weight: 1.0 },
@@ -458,6 +511,7 @@ fn best_hypotheses(
                         })
                         .collect();
                     let Some(pose) = pose_from_lines(&dirs, &points) else { continue };
+                    HYP.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                     let (score, _) = support(model, &pose, scene, free, p);
                     keep_best(&mut best, score, pose);
                 }
@@ -467,6 +521,7 @@ fn best_hypotheses(
     best.into_iter().map(|(_, pose)| pose).collect()
 }
 
+pub static HYP: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
 /// Hypotheses kept for verification per search.
 const HYPOTHESES: usize = 6;
 
