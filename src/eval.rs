@@ -276,6 +276,8 @@ pub struct LocateStats {
     /// Errors of the correct reports (over the model's symmetries).
     pub pos_err_mm: Vec<f64>,
     pub rot_err_deg: Vec<f64>,
+    /// Per model: eligible objects and how many of them were located.
+    pub by_model: std::collections::BTreeMap<String, [usize; 2]>,
 }
 
 /// A report counts as correct within these.
@@ -290,6 +292,11 @@ impl LocateStats {
         self.false_positives += o.false_positives;
         self.pos_err_mm.extend_from_slice(&o.pos_err_mm);
         self.rot_err_deg.extend_from_slice(&o.rot_err_deg);
+        for (model, [e, l]) in &o.by_model {
+            let t = self.by_model.entry(model.clone()).or_default();
+            t[0] += e;
+            t[1] += l;
+        }
     }
 }
 
@@ -346,6 +353,9 @@ pub fn locate_stats(
         .collect();
     let mut stats =
         LocateStats { eligible: eligible.iter().filter(|e| **e).count(), reports: located.len(), ..Default::default() };
+    for (o, &e) in scene.objects.iter().zip(&eligible) {
+        stats.by_model.entry(o.model.clone()).or_default()[0] += usize::from(e);
+    }
     let mut taken = vec![false; scene.objects.len()];
     for loc in located {
         let best = truths
@@ -357,6 +367,7 @@ pub fn locate_stats(
             Some((i, (pos, rot))) if pos <= CORRECT_POS_M && rot.to_degrees() <= CORRECT_ROT_DEG => {
                 taken[i] = true;
                 stats.located += usize::from(eligible[i]);
+                stats.by_model.entry(loc.model.clone()).or_default()[1] += usize::from(eligible[i]);
                 stats.pos_err_mm.push(pos * 1e3);
                 stats.rot_err_deg.push(rot.to_degrees());
             }

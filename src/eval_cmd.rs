@@ -55,7 +55,7 @@ pub enum EvalTarget {
     /// JSON keys: `located_fraction` (of objects with >= 30% of their feature-edge length
     /// visible), `pos_err_mm_median`, `pos_err_mm_p90`, `rot_err_deg_median` (of correct reports,
     /// over each model's symmetries; correct = within 10 mm and 5 deg), `false_positive_fraction`
-    /// (of all reports), `match_ms_median`.
+    /// (of all reports), `match_ms_median`, `located_by_model`.
     Locate {
         world: PathBuf,
         #[arg(long, default_value_t = 50)]
@@ -202,6 +202,7 @@ fn run_locate(world: &std::path::Path, scenes: u64, seed: u64, json: bool) -> an
         "rot_err_deg_median": quantile(&total.rot_err_deg, 0.5),
         "false_positive_fraction": total.false_positives as f64 / total.reports.max(1) as f64,
         "match_ms_median": quantile(&match_ms, 0.5),
+        "located_by_model": total.by_model.iter().map(|(m, [e, l])| (m.clone(), *l as f64 / (*e).max(1) as f64)).collect::<BTreeMap<_, _>>(),
     });
     if json { crate::emit(&report.to_string()) } else { crate::emit(&serde_json::to_string_pretty(&report)?) }
 }
