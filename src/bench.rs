@@ -16,7 +16,9 @@ pub enum BenchTarget {
     /// stereo pair (both Cannys, strings, rectification, PMF, 2D and 3D lines) in 8 slices and
     /// joined, on all cores; `slices` and `join` its two parts. `front_end_whole`: the same
     /// without slicing (`--slices 1`), with its stages `strings`, `rectify`, `pmf`, `geom2d`,
-    /// `geom3d`.
+    /// `geom3d`. `match`: the model matcher (every library model but the flag) on the front
+    /// end's 3D lines, verified against the left edgels. `vision_cycle`: stereo pair in, located
+    /// objects out (the sliced front end, then the matcher).
     Vision(BenchArgs),
     /// Simulation speed of the arm at work among 10 objects: the default world's clutter plus
     /// another block, L-bracket and T-piece, cleared by picking (`marvin pick --all`), one
@@ -188,6 +190,27 @@ pub fn run(target: BenchTarget) -> anyhow::Result<()> {
             }
             results.push(("front_end", sliced));
             results.push(("front_end_whole", whole));
+            // The matcher: every library model but the flag on the front end's 3D lines, with the
+            // left image's edgels for verification; and the whole cycle, stereo pair in, located
+            // objects out.
+            let models = crate::eval_cmd::matcher_models(&s.scn.library, None);
+            let mp = vision::matcher::MatchParams::default();
+            let fe = vision::slices::run_sliced(&left, &right, &s.calib, &params, 8);
+            let lines: Vec<vision::matcher::Seg> =
+                fe.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
+            let evidence = vision::verify::ImageEvidence { cam: &s.calib.left, edges: &fe.left };
+            let matching = median_ms(args.runs, || {
+                std::hint::black_box(vision::matcher::locate_all(&models, &lines, &mp, Some(&evidence)));
+            });
+            let cycle = median_ms(args.runs, || {
+                let fe = vision::slices::run_sliced(&left, &right, &s.calib, &params, 8);
+                let lines: Vec<vision::matcher::Seg> =
+                    fe.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
+                let evidence = vision::verify::ImageEvidence { cam: &s.calib.left, edges: &fe.left };
+                std::hint::black_box(vision::matcher::locate_all(&models, &lines, &mp, Some(&evidence)));
+            });
+            results.push(("match", matching));
+            results.push(("vision_cycle", cycle));
             let what = format!(
                 "{}; canny one thread, the rest {} threads",
                 args.world.display(),
