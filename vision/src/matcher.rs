@@ -229,6 +229,16 @@ pub fn support_at(model: &MatcherModel, pose: &Isometry3<f64>, scene: &[Seg], p:
     (score / model.total_length, lines.len())
 }
 
+/// The (model line, scene line, overlap length) correspondences a pose finds, for diagnosis.
+pub fn correspondences_at(
+    model: &MatcherModel,
+    pose: &Isometry3<f64>,
+    scene: &[Seg],
+    p: &MatchParams,
+) -> Vec<(usize, usize, f64)> {
+    support(model, pose, scene, &vec![true; scene.len()], p).1
+}
+
 /// Support of a pose: per model line, the scene length along it (capped at its length), summed;
 /// with the (model line, scene line, overlap) correspondences behind it.
 fn support(
@@ -375,22 +385,29 @@ pub fn locate(
     let mut free = vec![true; scene.len()];
     let mut found = Vec::new();
     'instances: for _ in 0..p.max_instances {
-        // The best hypotheses in turn: the first that survives refinement and verification is
-        // the next instance.
-        for start in best_hypotheses(model, scene, &free, &focus, p) {
-            let (pose, score, pairs) = refine(model, scene, &free, start, p);
-            let mut lines_seen: Vec<usize> = pairs.iter().map(|&(i, ..)| i).collect();
+        // The best-supported hypotheses, each refined and checked against the image, are
+        // verified in order of both kinds of evidence; the first that passes is the next instance.
+        let mut candidates: Vec<Candidate> = best_hypotheses(model, scene, &free, &focus, p)
+            .into_iter()
+            .map(|start| {
+                let (pose, score, pairs) = refine(model, scene, &free, start, p);
+                let image_support = image.map_or(1.0, |ev| crate::verify::image_support(model, &pose, ev));
+                Candidate { pose, score, pairs, image_support }
+            })
+            .collect();
+        candidates.sort_by(|a, b| b.rank().total_cmp(&a.rank()));
+        for c in candidates {
+            let mut lines_seen: Vec<usize> = c.pairs.iter().map(|&(i, ..)| i).collect();
             lines_seen.sort_unstable();
             lines_seen.dedup();
-            let fraction = score / model.total_length;
-            if fraction < p.min_support_fraction || lines_seen.len() < p.min_support_lines {
+            let fraction = c.score / model.total_length;
+            if fraction < p.min_support_fraction
+                || lines_seen.len() < p.min_support_lines
+                || c.image_support < p.min_image_support
+            {
                 continue;
             }
-            let image_support = image.map_or(1.0, |ev| crate::verify::image_support(model, &pose, ev));
-            if image_support < p.min_image_support {
-                continue;
-            }
-            let mut used: Vec<usize> = pairs.iter().map(|&(_, j, _)| j).collect();
+            let mut used: Vec<usize> = c.pairs.iter().map(|&(_, j, _)| j).collect();
             used.sort_unstable();
             used.dedup();
             for &j in &used {
@@ -398,17 +415,33 @@ pub fn locate(
             }
             found.push(Located {
                 model: model.name.clone(),
-                cam_from_model: pose,
-                support: score,
+                cam_from_model: c.pose,
+                support: c.score,
                 support_fraction: fraction,
                 scene_lines: used,
-                image_support,
+                image_support: c.image_support,
             });
             continue 'instances;
         }
         break;
     }
     found
+}
+
+/// A refined hypothesis with its evidence.
+struct Candidate {
+    pose: Isometry3<f64>,
+    score: f64,
+    pairs: Vec<(usize, usize, f64)>,
+    image_support: f64,
+}
+
+impl Candidate {
+    /// Matched 3D length weighted by how much of the pose's camera-facing wireframe the image
+    /// shows.
+    fn rank(&self) -> f64 {
+        self.score * self.image_support
+    }
 }
 
 /// Every model sought in the scene, each by its own matcher (in parallel, as MARVIN gave each
@@ -461,8 +494,29 @@ fn best_hypotheses(
     focus: &[FocusPair],
     p: &MatchParams,
 ) -> Vec<Isometry3<f64>> {
-    let seeds: Vec<usize> = (0..scene.len()).filter(|&j| free[j] && scene[j].len >= p.min_seed_length).collect();
     let mut best: Vec<(f64, Isometry3<f64>)> = Vec::new();
+    for_each_hypothesis(model, scene, free, focus, p, |score, pose| keep_best(&mut best, score, pose));
+    best.into_iter().map(|(_, pose)| pose).collect()
+}
+
+/// Every hypothesis the scene's free lines give, with its support, for diagnosis.
+pub fn scored_hypotheses(model: &MatcherModel, scene: &[Seg], p: &MatchParams) -> Vec<(f64, Isometry3<f64>)> {
+    let mut all = Vec::new();
+    let focus = focus_pairs(model, p);
+    for_each_hypothesis(model, scene, &vec![true; scene.len()], &focus, p, |score, pose| all.push((score, pose)));
+    all
+}
+
+/// Calls `seen(support, pose)` for each hypothesis from a scene pair congruent with a focus pair.
+fn for_each_hypothesis(
+    model: &MatcherModel,
+    scene: &[Seg],
+    free: &[bool],
+    focus: &[FocusPair],
+    p: &MatchParams,
+    mut seen: impl FnMut(f64, Isometry3<f64>),
+) {
+    let seeds: Vec<usize> = (0..scene.len()).filter(|&j| free[j] && scene[j].len >= p.min_seed_length).collect();
     for &j in &seeds {
         for &l in &seeds {
             if j == l {
@@ -514,16 +568,15 @@ fn best_hypotheses(
                         .collect();
                     let Some(pose) = pose_from_lines(&dirs, &points) else { continue };
                     let (score, _) = support(model, &pose, scene, free, p);
-                    keep_best(&mut best, score, pose);
+                    seen(score, pose);
                 }
             }
         }
     }
-    best.into_iter().map(|(_, pose)| pose).collect()
 }
 
 /// Hypotheses kept for verification per search.
-const HYPOTHESES: usize = 6;
+const HYPOTHESES: usize = 12;
 
 /// Keeps the `HYPOTHESES` best-scored poses, a pose near a kept one (within 5 mm and 5 deg)
 /// replacing it only if it scores better.
