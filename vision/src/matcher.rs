@@ -146,7 +146,7 @@ impl Default for MatchParams {
             min_support_fraction: 0.15,
             min_support_lines: 3,
             max_instances: 3,
-            min_image_support: 0.6,
+            min_image_support: 0.5,
         }
     }
 }
