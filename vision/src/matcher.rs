@@ -1,16 +1,22 @@
 //! The model matcher (Pollard, Porrill, Mayhew & Frisby, as TINA uses it), for one model.
 //!
 //! - The model is its wireframe: directed 3D segments, with the grasp positions of the library.
-//! - Pairwise relations (the angle between two lines and their perpendicular separation, as in
-//!   Grimson & Lozano-Perez's tables) are tabled once per model for the pairs that matter: each
-//!   focus line (the longest, most telling lines, in the manner of Bolles) with its feature group
-//!   (the lines not parallel to it).
+//! - Featural parallelism: the model is split into six characteristic views (the lines on faces
+//!   turned towards a viewer looking along one of the model's axes); a subordinate matcher per
+//!   view searches the scene, all in parallel, and the virtual matcher ([`locate`]) keeps the
+//!   best of their hypotheses and looks again for further instances.
+//! - Pairwise relations (the angle between two lines, their perpendicular separation and where
+//!   along each the closest approach falls, as in Grimson & Lozano-Perez's tables) are tabled
+//!   per view for the pairs that matter: each focus line (the view's longest, in the manner of
+//!   Bolles) with its feature group (the view's lines not parallel to it); pairs that the
+//!   model's symmetry makes equivalent are tabled once.
 //! - Hypotheses: a scene pair congruent with a focus pair, within tolerances that let fragments
 //!   and partly seen lines qualify, gives a pose by least squares ([`crate::pose_fit`]).
 //! - Each hypothesis is ranked by the support its pose finds: the length of scene lines lying
-//!   along the transformed model lines. The best is refined on its supporting set and verified
-//!   (enough of the model seen, along enough lines) before it is reported; then the matcher looks
-//!   again, without the lines already explained, for further instances.
+//!   along the transformed model lines. The best dozen are refined on their supporting sets and
+//!   verified in order of that support times the image evidence ([`crate::verify`]): enough of
+//!   the model seen, along enough lines, and along the left image's edgels; then the matcher
+//!   looks again, without the lines already explained, for further instances.
 //!
 //! Scene lines come from stereo with no particular direction, so each is used both ways round.
 
@@ -120,7 +126,7 @@ pub struct MatchParams {
     pub support_distance: f64,
     /// Scene lines shorter than this do not seed hypotheses (metres).
     pub min_seed_length: f64,
-    /// How many of the model's longest lines serve as focus features.
+    /// How many of a characteristic view's longest lines serve as its focus features.
     pub focus_lines: usize,
     /// A located object must have this fraction of its wireframe length seen (measured: as a
     /// fraction of the length its pose turns towards the camera instead, every threshold found
@@ -310,26 +316,57 @@ struct FocusPair {
 /// the other way round, is left out: the hypotheses it would give are the same poses (up to
 /// the symmetry, which is as correct), and each costs a support evaluation.
 fn focus_pairs(model: &MatcherModel, p: &MatchParams) -> Vec<FocusPair> {
-    let mut order: Vec<usize> = (0..model.lines.len()).collect();
+    let all: Vec<usize> = (0..model.lines.len()).collect();
+    focus_pairs_among(model, &all, p, &[])
+}
+
+/// The focus pairs among `lines` (focus lines: the longest of them), leaving out pairs that
+/// `tabled` (or the new ones) already stand for.
+fn focus_pairs_among(model: &MatcherModel, lines: &[usize], p: &MatchParams, tabled: &[FocusPair]) -> Vec<FocusPair> {
+    let mut order = lines.to_vec();
     order.sort_by(|&a, &b| model.lines[b].len.total_cmp(&model.lines[a].len));
     let mut out: Vec<FocusPair> = Vec::new();
     for &i in order.iter().take(p.focus_lines) {
-        for k in 0..model.lines.len() {
+        for &k in lines {
             let (li, lk) = (&model.lines[i], &model.lines[k]);
             let angle = line_angle(&li.dir, &lk.dir);
-            if k == i || angle <= 0.35 || out.iter().any(|f| f.focus == k && f.partner == i) {
+            let seen = |f: &FocusPair| (f.focus == k && f.partner == i) || (f.focus == i && f.partner == k);
+            if k == i || angle <= 0.35 || out.iter().chain(tabled).any(seen) {
                 continue;
             }
             let (at_focus, at_partner) = closest_params(&li.a, &li.dir, &lk.a, &lk.dir);
             let separation = separation(&li.a, &li.dir, &lk.a, &lk.dir);
             let pair = FocusPair { focus: i, partner: k, angle, separation, at_focus, at_partner };
-            if !out.iter().any(|f| symmetric_images(model, f, &pair)) {
+            if !out.iter().chain(tabled).any(|f| symmetric_images(model, f, &pair)) {
                 out.push(pair);
             }
         }
     }
     out
 }
+
+/// Characteristic views: for each of the model's six axis directions, the lines on faces that
+/// turn towards a viewer looking from there, with the focus pairs among them (pairs an earlier
+/// view tabled are not tabled again). A subordinate matcher searches for each view.
+fn characteristic_views(model: &MatcherModel, p: &MatchParams) -> Vec<Vec<FocusPair>> {
+    let mut tabled: Vec<FocusPair> = Vec::new();
+    let mut views = Vec::new();
+    for axis in 0..3 {
+        for sign in [1.0, -1.0] {
+            let towards = Vector3::ith(axis, sign);
+            let lines: Vec<usize> = (0..model.lines.len())
+                .filter(|&i| model.faces[i].is_empty() || model.faces[i].iter().any(|n| n.dot(&towards) > VIEW_FACING))
+                .collect();
+            let pairs = focus_pairs_among(model, &lines, p, &tabled);
+            tabled.extend_from_slice(&pairs);
+            views.push(pairs);
+        }
+    }
+    views
+}
+
+/// A face belongs to a view when its normal is within 60 deg of the view direction.
+const VIEW_FACING: f64 = 0.5;
 
 /// Whether a rigid motion that takes pair `b`'s lines onto pair `a`'s (ends to ends) maps the
 /// whole wireframe onto itself.
@@ -381,13 +418,13 @@ pub fn locate(
     p: &MatchParams,
     image: Option<&crate::verify::ImageEvidence>,
 ) -> Vec<Located> {
-    let focus = focus_pairs(model, p);
+    let views = characteristic_views(model, p);
     let mut free = vec![true; scene.len()];
     let mut found = Vec::new();
     'instances: for _ in 0..p.max_instances {
         // The best-supported hypotheses, each refined and checked against the image, are
         // verified in order of both kinds of evidence; the first that passes is the next instance.
-        let mut candidates: Vec<Candidate> = best_hypotheses(model, scene, &free, &focus, p)
+        let mut candidates: Vec<Candidate> = best_hypotheses(model, scene, &free, &views, p)
             .into_iter()
             .map(|start| {
                 let (pose, score, pairs) = refine(model, scene, &free, start, p);
@@ -491,11 +528,23 @@ fn best_hypotheses(
     model: &MatcherModel,
     scene: &[Seg],
     free: &[bool],
-    focus: &[FocusPair],
+    views: &[Vec<FocusPair>],
     p: &MatchParams,
 ) -> Vec<Isometry3<f64>> {
-    let mut best: Vec<(f64, Isometry3<f64>)> = Vec::new();
-    for_each_hypothesis(model, scene, free, focus, p, |score, pose| keep_best(&mut best, score, pose));
+    use rayon::prelude::*;
+    // One subordinate matcher per characteristic view, in parallel; the best of all stand.
+    let per_view: Vec<Vec<(f64, Isometry3<f64>)>> = views
+        .par_iter()
+        .map(|focus| {
+            let mut best = Vec::new();
+            for_each_hypothesis(model, scene, free, focus, p, |score, pose| keep_best(&mut best, score, pose));
+            best
+        })
+        .collect();
+    let mut best = Vec::new();
+    for (score, pose) in per_view.into_iter().flatten() {
+        keep_best(&mut best, score, pose);
+    }
     best.into_iter().map(|(_, pose)| pose).collect()
 }
 
