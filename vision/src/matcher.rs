@@ -279,6 +279,43 @@ fn support(
     (total, pairs)
 }
 
+/// The free scene lines laid out for [`support_score`]: index, midpoint and half length.
+struct FreeLines {
+    index: Vec<usize>,
+    mid: Vec<Point3<f64>>,
+    half: Vec<f64>,
+}
+
+impl FreeLines {
+    fn new(scene: &[Seg], free: &[bool]) -> FreeLines {
+        let index: Vec<usize> = (0..scene.len()).filter(|&j| free[j]).collect();
+        let mid = index.iter().map(|&j| scene[j].a + (scene[j].b - scene[j].a) * 0.5).collect();
+        let half = index.iter().map(|&j| 0.5 * scene[j].len).collect();
+        FreeLines { index, mid, half }
+    }
+}
+
+/// The support of a pose alone, as [`support`] measures it, without the correspondences: the
+/// inner loop of hypothesis ranking, so the free lines come laid out once per search.
+fn support_score(model: &MatcherModel, pose: &Isometry3<f64>, scene: &[Seg], free: &FreeLines, p: &MatchParams) -> f64 {
+    let cos_tolerance = p.angle_tolerance.cos();
+    let mut total = 0.0;
+    for ml in &model.lines {
+        let t = ml.transformed(pose);
+        let mid = t.a + (t.b - t.a) * 0.5;
+        let mut along = 0.0;
+        for (k, m) in free.mid.iter().enumerate() {
+            let reach = 0.5 * t.len + free.half[k] + p.support_distance;
+            if (m - mid).norm_squared() > reach * reach {
+                continue;
+            }
+            along += overlap(&t, &scene[free.index[k]], cos_tolerance, p);
+        }
+        total += along.min(ml.len);
+    }
+    total
+}
+
 /// The pose from correspondences, directions signed to agree with `pose`.
 fn fit(
     model: &MatcherModel,
@@ -566,6 +603,7 @@ fn for_each_hypothesis(
     mut seen: impl FnMut(f64, Isometry3<f64>),
 ) {
     let seeds: Vec<usize> = (0..scene.len()).filter(|&j| free[j] && scene[j].len >= p.min_seed_length).collect();
+    let free_lines = FreeLines::new(scene, free);
     for &j in &seeds {
         for &l in &seeds {
             if j == l {
@@ -616,8 +654,7 @@ fn for_each_hypothesis(
                         })
                         .collect();
                     let Some(pose) = pose_from_lines(&dirs, &points) else { continue };
-                    let (score, _) = support(model, &pose, scene, free, p);
-                    seen(score, pose);
+                    seen(support_score(model, &pose, scene, &free_lines, p), pose);
                 }
             }
         }
