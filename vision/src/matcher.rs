@@ -295,12 +295,34 @@ impl FreeLines {
     }
 }
 
+/// The model's lines, longest first.
+fn longest_first(model: &MatcherModel) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..model.lines.len()).collect();
+    order.sort_by(|&a, &b| model.lines[b].len.total_cmp(&model.lines[a].len));
+    order
+}
+
 /// The support of a pose alone, as [`support`] measures it, without the correspondences: the
-/// inner loop of hypothesis ranking, so the free lines come laid out once per search.
-fn support_score(model: &MatcherModel, pose: &Isometry3<f64>, scene: &[Seg], free: &FreeLines, p: &MatchParams) -> f64 {
+/// inner loop of hypothesis ranking, so the free lines come laid out once per search. Model
+/// lines are taken longest first, and the count stops (`None`) as soon as even full support of
+/// the lines left could not lift the score above `floor`.
+fn support_score(
+    model: &MatcherModel,
+    order: &[usize],
+    pose: &Isometry3<f64>,
+    scene: &[Seg],
+    free: &FreeLines,
+    p: &MatchParams,
+    floor: f64,
+) -> Option<f64> {
     let cos_tolerance = p.angle_tolerance.cos();
-    let mut total = 0.0;
-    for ml in &model.lines {
+    let (mut total, mut left) = (0.0, model.total_length);
+    for &i in order {
+        if total + left <= floor {
+            return None;
+        }
+        let ml = &model.lines[i];
+        left -= ml.len;
         let t = ml.transformed(pose);
         let mid = t.a + (t.b - t.a) * 0.5;
         let mut along = 0.0;
@@ -313,7 +335,7 @@ fn support_score(model: &MatcherModel, pose: &Isometry3<f64>, scene: &[Seg], fre
         }
         total += along.min(ml.len);
     }
-    total
+    (total > floor).then_some(total)
 }
 
 /// The pose from correspondences, directions signed to agree with `pose`.
@@ -573,9 +595,9 @@ fn best_hypotheses(
     let per_view: Vec<Vec<(f64, Isometry3<f64>)>> = views
         .par_iter()
         .map(|focus| {
-            let mut best = Vec::new();
-            for_each_hypothesis(model, scene, free, focus, p, |score, pose| keep_best(&mut best, score, pose));
-            best
+            let mut best = Best(Vec::new());
+            for_each_hypothesis(model, scene, free, focus, p, &mut best);
+            best.0
         })
         .collect();
     let mut best = Vec::new();
@@ -587,23 +609,58 @@ fn best_hypotheses(
 
 /// Every hypothesis the scene's free lines give, with its support, for diagnosis.
 pub fn scored_hypotheses(model: &MatcherModel, scene: &[Seg], p: &MatchParams) -> Vec<(f64, Isometry3<f64>)> {
-    let mut all = Vec::new();
+    let mut all = All(Vec::new());
     let focus = focus_pairs(model, p);
-    for_each_hypothesis(model, scene, &vec![true; scene.len()], &focus, p, |score, pose| all.push((score, pose)));
-    all
+    for_each_hypothesis(model, scene, &vec![true; scene.len()], &focus, p, &mut all);
+    all.0
 }
 
-/// Calls `seen(support, pose)` for each hypothesis from a scene pair congruent with a focus pair.
+/// Where scored hypotheses go.
+trait Hypotheses {
+    /// Support a hypothesis must exceed to matter (hypotheses that cannot are not scored out).
+    fn floor(&self) -> f64;
+    fn seen(&mut self, score: f64, pose: Isometry3<f64>);
+}
+
+/// The best [`HYPOTHESES`], no two alike.
+struct Best(Vec<(f64, Isometry3<f64>)>);
+
+impl Hypotheses for Best {
+    fn floor(&self) -> f64 {
+        if self.0.len() == HYPOTHESES { self.0.last().map_or(0.0, |(s, _)| *s) } else { 0.0 }
+    }
+
+    fn seen(&mut self, score: f64, pose: Isometry3<f64>) {
+        keep_best(&mut self.0, score, pose);
+    }
+}
+
+/// Every hypothesis.
+struct All(Vec<(f64, Isometry3<f64>)>);
+
+impl Hypotheses for All {
+    fn floor(&self) -> f64 {
+        f64::NEG_INFINITY
+    }
+
+    fn seen(&mut self, score: f64, pose: Isometry3<f64>) {
+        self.0.push((score, pose));
+    }
+}
+
+/// Hands `sink` each hypothesis from a scene pair congruent with a focus pair, with its support
+/// (those that cannot beat the sink's floor are left unscored and unseen).
 fn for_each_hypothesis(
     model: &MatcherModel,
     scene: &[Seg],
     free: &[bool],
     focus: &[FocusPair],
     p: &MatchParams,
-    mut seen: impl FnMut(f64, Isometry3<f64>),
+    sink: &mut impl Hypotheses,
 ) {
     let seeds: Vec<usize> = (0..scene.len()).filter(|&j| free[j] && scene[j].len >= p.min_seed_length).collect();
     let free_lines = FreeLines::new(scene, free);
+    let order = longest_first(model);
     for &j in &seeds {
         for &l in &seeds {
             if j == l {
@@ -654,7 +711,9 @@ fn for_each_hypothesis(
                         })
                         .collect();
                     let Some(pose) = pose_from_lines(&dirs, &points) else { continue };
-                    seen(support_score(model, &pose, scene, &free_lines, p), pose);
+                    if let Some(score) = support_score(model, &order, &pose, scene, &free_lines, p, sink.floor()) {
+                        sink.seen(score, pose);
+                    }
                 }
             }
         }
