@@ -591,12 +591,13 @@ fn best_hypotheses(
     p: &MatchParams,
 ) -> Vec<Isometry3<f64>> {
     use rayon::prelude::*;
+    let (pairs, free_lines) = (scene_pairs(scene, free, p), FreeLines::new(scene, free));
     // One subordinate matcher per characteristic view, in parallel; the best of all stand.
     let per_view: Vec<Vec<(f64, Isometry3<f64>)>> = views
         .par_iter()
         .map(|focus| {
             let mut best = Best(Vec::new());
-            for_each_hypothesis(model, scene, free, focus, p, &mut best);
+            for_each_hypothesis(model, scene, (&pairs, &free_lines), focus, p, &mut best);
             best.0
         })
         .collect();
@@ -611,7 +612,9 @@ fn best_hypotheses(
 pub fn scored_hypotheses(model: &MatcherModel, scene: &[Seg], p: &MatchParams) -> Vec<(f64, Isometry3<f64>)> {
     let mut all = All(Vec::new());
     let focus = focus_pairs(model, p);
-    for_each_hypothesis(model, scene, &vec![true; scene.len()], &focus, p, &mut all);
+    let free = vec![true; scene.len()];
+    let (pairs, free_lines) = (scene_pairs(scene, &free, p), FreeLines::new(scene, &free));
+    for_each_hypothesis(model, scene, (&pairs, &free_lines), &focus, p, &mut all);
     all.0
 }
 
@@ -648,33 +651,55 @@ impl Hypotheses for All {
     }
 }
 
+/// Two free scene lines that could seed a hypothesis, with their relations.
+struct ScenePair {
+    j: usize,
+    l: usize,
+    angle: f64,
+    separation: f64,
+    /// Where the closest approach falls along each, from its start.
+    at_j: f64,
+    at_l: f64,
+}
+
+/// Every ordered pair of free scene lines long enough to seed and far enough from parallel.
+fn scene_pairs(scene: &[Seg], free: &[bool], p: &MatchParams) -> Vec<ScenePair> {
+    let seeds: Vec<usize> = (0..scene.len()).filter(|&j| free[j] && scene[j].len >= p.min_seed_length).collect();
+    let mut out = Vec::new();
+    for &j in &seeds {
+        for &l in &seeds {
+            let (sj, sl) = (&scene[j], &scene[l]);
+            let angle = line_angle(&sj.dir, &sl.dir);
+            if j == l || angle < 0.3 {
+                continue;
+            }
+            let separation = separation(&sj.a, &sj.dir, &sl.a, &sl.dir);
+            let (at_j, at_l) = closest_params(&sj.a, &sj.dir, &sl.a, &sl.dir);
+            out.push(ScenePair { j, l, angle, separation, at_j, at_l });
+        }
+    }
+    out
+}
+
 /// Hands `sink` each hypothesis from a scene pair congruent with a focus pair, with its support
 /// (those that cannot beat the sink's floor are left unscored and unseen).
 fn for_each_hypothesis(
     model: &MatcherModel,
     scene: &[Seg],
-    free: &[bool],
+    (pairs, free_lines): (&[ScenePair], &FreeLines),
     focus: &[FocusPair],
     p: &MatchParams,
     sink: &mut impl Hypotheses,
 ) {
-    let seeds: Vec<usize> = (0..scene.len()).filter(|&j| free[j] && scene[j].len >= p.min_seed_length).collect();
-    let free_lines = FreeLines::new(scene, free);
     let order = longest_first(model);
-    for &j in &seeds {
-        for &l in &seeds {
-            if j == l {
-                continue;
-            }
-            let (sj, sl) = (&scene[j], &scene[l]);
-            let angle = line_angle(&sj.dir, &sl.dir);
-            if angle < 0.3 {
-                continue;
-            }
-            let sep = separation(&sj.a, &sj.dir, &sl.a, &sl.dir);
-            let (tj, tl) = closest_params(&sj.a, &sj.dir, &sl.a, &sl.dir);
+    for sp in pairs {
+        let (sj, sl) = (&scene[sp.j], &scene[sp.l]);
+        let (tj, tl) = (sp.at_j, sp.at_l);
+        {
             for f in focus {
-                if (angle - f.angle).abs() > p.angle_tolerance || (sep - f.separation).abs() > p.separation_tolerance {
+                if (sp.angle - f.angle).abs() > p.angle_tolerance
+                    || (sp.separation - f.separation).abs() > p.separation_tolerance
+                {
                     continue;
                 }
                 let (mi, mk) = (&model.lines[f.focus], &model.lines[f.partner]);
@@ -699,17 +724,13 @@ fn for_each_hypothesis(
                         DirectionPair { model: mi.dir, scene: vj, weight: 1.0 },
                         DirectionPair { model: mk.dir, scene: vl, weight: 1.0 },
                     ];
-                    let points: Vec<PointOnLine> = [(sj, mi), (sl, mk)]
-                        .iter()
-                        .flat_map(|(s, m)| {
-                            [s.a, s.b].map(|x| PointOnLine {
-                                scene: x,
-                                model_point: m.a,
-                                model_direction: m.dir,
-                                weight: 1.0,
-                            })
-                        })
-                        .collect();
+                    let on = |x: Point3<f64>, m: &Seg| PointOnLine {
+                        scene: x,
+                        model_point: m.a,
+                        model_direction: m.dir,
+                        weight: 1.0,
+                    };
+                    let points = [on(sj.a, mi), on(sj.b, mi), on(sl.a, mk), on(sl.b, mk)];
                     let Some(pose) = pose_from_lines(&dirs, &points) else { continue };
                     if let Some(score) = support_score(model, &order, &pose, scene, &free_lines, p, sink.floor()) {
                         sink.seen(score, pose);
