@@ -405,7 +405,7 @@ fn focus_pairs_among(model: &MatcherModel, lines: &[usize], p: &MatchParams, tab
 }
 
 /// Characteristic views: for each of the model's six axis directions, the lines on faces that
-/// turn towards a viewer looking from there, with the focus pairs among them (pairs an earlier
+/// a viewer looking from near there can see, with the focus pairs among them (pairs an earlier
 /// view tabled are not tabled again). A subordinate matcher searches for each view.
 fn characteristic_views(model: &MatcherModel, p: &MatchParams) -> Vec<Vec<FocusPair>> {
     let mut tabled: Vec<FocusPair> = Vec::new();
@@ -424,8 +424,10 @@ fn characteristic_views(model: &MatcherModel, p: &MatchParams) -> Vec<Vec<FocusP
     views
 }
 
-/// A face belongs to a view when its normal is within 60 deg of the view direction.
-const VIEW_FACING: f64 = 0.5;
+/// A face belongs to a view when its normal is within about 96 deg of the view direction: a
+/// viewer above an object lying flat sees its top and, obliquely, its sides, and the pairs that
+/// seed hypotheses often join a top edge to a side edge.
+const VIEW_FACING: f64 = -0.1;
 
 /// Whether a rigid motion that takes pair `b`'s lines onto pair `a`'s (ends to ends) maps the
 /// whole wireframe onto itself.
