@@ -86,6 +86,11 @@ pub fn run(
                         r["pos_err_mm"].as_f64().unwrap_or(f64::NAN),
                         r["rot_err_deg"].as_f64().unwrap_or(f64::NAN)
                     )
+                } else if let (Some(pos), Some(rot)) = (r["pos_err_mm"].as_f64(), r["rot_err_deg"].as_f64()) {
+                    format!(
+                        "FALSE: the nearest {} is {pos:.1} mm, {rot:.1} deg away",
+                        r["model"].as_str().unwrap_or("?")
+                    )
                 } else {
                     "FALSE: no such object there".to_string()
                 }
