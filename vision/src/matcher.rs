@@ -370,17 +370,11 @@ struct FocusPair {
     at_partner: f64,
 }
 
-/// Focus lines (longest first) and, for each, its feature group: the lines not near-parallel.
-/// A pair that the model's own symmetry maps onto a pair already tabled, or the same two lines
-/// the other way round, is left out: the hypotheses it would give are the same poses (up to
-/// the symmetry, which is as correct), and each costs a support evaluation.
-fn focus_pairs(model: &MatcherModel, p: &MatchParams) -> Vec<FocusPair> {
-    let all: Vec<usize> = (0..model.lines.len()).collect();
-    focus_pairs_among(model, &all, p, &[])
-}
-
-/// The focus pairs among `lines` (focus lines: the longest of them), leaving out pairs that
-/// `tabled` (or the new ones) already stand for.
+/// The focus pairs among `lines`: each focus line (the longest of them) with its feature group
+/// (the lines not near-parallel to it). A pair that the model's own symmetry maps onto a pair
+/// already tabled (in `tabled` or among the new ones), or the same two lines the other way
+/// round, is left out: the hypotheses it would give are the same poses (up to the symmetry,
+/// which is as correct), and each costs a support evaluation.
 fn focus_pairs_among(model: &MatcherModel, lines: &[usize], p: &MatchParams, tabled: &[FocusPair]) -> Vec<FocusPair> {
     let mut order = lines.to_vec();
     order.sort_by(|&a, &b| model.lines[b].len.total_cmp(&model.lines[a].len));
@@ -610,46 +604,17 @@ fn best_hypotheses(
     best.into_iter().map(|(_, pose)| pose).collect()
 }
 
-/// Every hypothesis the scene's free lines give, with its support, for diagnosis.
-pub fn scored_hypotheses(model: &MatcherModel, scene: &[Seg], p: &MatchParams) -> Vec<(f64, Isometry3<f64>)> {
-    let mut all = All(Vec::new());
-    let focus = focus_pairs(model, p);
-    let free = vec![true; scene.len()];
-    let (pairs, free_lines) = (scene_pairs(scene, &free, p), FreeLines::new(scene, &free));
-    for_each_hypothesis(model, scene, (&pairs, &free_lines), &focus, p, &mut all);
-    all.0
-}
-
-/// Where scored hypotheses go.
-trait Hypotheses {
-    /// Support a hypothesis must exceed to matter (hypotheses that cannot are not scored out).
-    fn floor(&self) -> f64;
-    fn seen(&mut self, score: f64, pose: Isometry3<f64>);
-}
-
-/// The best [`HYPOTHESES`], no two alike.
+/// The best [`HYPOTHESES`] hypotheses of a search, no two alike.
 struct Best(Vec<(f64, Isometry3<f64>)>);
 
-impl Hypotheses for Best {
+impl Best {
+    /// Support a hypothesis must exceed to matter.
     fn floor(&self) -> f64 {
         if self.0.len() == HYPOTHESES { self.0.last().map_or(0.0, |(s, _)| *s) } else { 0.0 }
     }
 
     fn seen(&mut self, score: f64, pose: Isometry3<f64>) {
         keep_best(&mut self.0, score, pose);
-    }
-}
-
-/// Every hypothesis.
-struct All(Vec<(f64, Isometry3<f64>)>);
-
-impl Hypotheses for All {
-    fn floor(&self) -> f64 {
-        f64::NEG_INFINITY
-    }
-
-    fn seen(&mut self, score: f64, pose: Isometry3<f64>) {
-        self.0.push((score, pose));
     }
 }
 
@@ -691,7 +656,7 @@ fn for_each_hypothesis(
     (pairs, free_lines): (&[ScenePair], &FreeLines),
     focus: &[FocusPair],
     p: &MatchParams,
-    sink: &mut impl Hypotheses,
+    sink: &mut Best,
 ) {
     let order = longest_first(model);
     for sp in pairs {
@@ -734,7 +699,7 @@ fn for_each_hypothesis(
                     };
                     let points = [on(sj.a, mi), on(sj.b, mi), on(sl.a, mk), on(sl.b, mk)];
                     let Some(pose) = pose_from_lines(&dirs, &points) else { continue };
-                    if let Some(score) = support_score(model, &order, &pose, scene, &free_lines, p, sink.floor()) {
+                    if let Some(score) = support_score(model, &order, &pose, scene, free_lines, p, sink.floor()) {
                         sink.seen(score, pose);
                     }
                 }
