@@ -830,4 +830,44 @@ mod tests {
             .collect();
         assert!(locate(&model, &scene, &MatchParams::default(), None).is_empty());
     }
+
+    /// A symmetric model seen from above: only the lines on faces turned towards a camera over
+    /// it (the top and the sides), fragmented and noised. The pose comes back up to the model's
+    /// symmetry, although its equivalent focus pairs are tabled once.
+    #[test]
+    fn a_symmetric_model_seen_from_one_side_is_found_up_to_its_symmetry() {
+        let lib = mesh::Library::load_default().unwrap();
+        for name in ["block", "hex_prism"] {
+            let model = MatcherModel::from_model(lib.get(name).unwrap());
+            let pose = Isometry3::from_parts(
+                Translation3::new(-0.02, 0.04, 0.9),
+                UnitQuaternion::from_euler_angles(2.6, 0.3, -0.7),
+            );
+            let camera_side = |k: usize| {
+                let mid = pose * (model.lines[k].a + (model.lines[k].b - model.lines[k].a) * 0.5);
+                model.faces[k].iter().any(|n| (pose.rotation * n).dot(&-mid.coords) > 0.0)
+            };
+            let mut rng = Lcg(11);
+            let scene: Vec<Seg> = (0..model.lines.len())
+                .filter(|&k| camera_side(k))
+                .map(|k| {
+                    let t = model.lines[k].transformed(&pose);
+                    Seg::new(t.a + (t.b - t.a) * 0.05 + rng.noise(2e-4), t.a + (t.b - t.a) * 0.9 + rng.noise(2e-4))
+                })
+                .collect();
+            let found = locate(&model, &scene, &MatchParams::default(), None);
+            assert_eq!(found.len(), 1, "{name}");
+            // Equivalent under the symmetry: every model line lands on a model line of the truth.
+            let got = found[0].cam_from_model;
+            for l in &model.lines {
+                let (a, b) = (got * l.a, got * l.b);
+                let on_truth = model.lines.iter().any(|m| {
+                    let (ma, mb) = (pose * m.a, pose * m.b);
+                    ((ma - a).norm() < 2e-3 && (mb - b).norm() < 2e-3)
+                        || ((ma - b).norm() < 2e-3 && (mb - a).norm() < 2e-3)
+                });
+                assert!(on_truth, "{name}: a line of the located model is not on the true one");
+            }
+        }
+    }
 }
