@@ -52,7 +52,7 @@ pub fn run(
         if let (true, Some((i, _))) = (correct, best) {
             taken[i] = true;
         }
-        let grasp = scn.library.models[&loc.model].grasps.first().map(|g| loc.cam_from_model * g.model_from_gripper);
+        let grasp = loc.grasps.first().map(|(cam_from_gripper, _)| *cam_from_gripper);
         rows.push(serde_json::json!({
             "model": loc.model,
             "cam_from_model": mesh::pose::PoseRecord::from(&loc.cam_from_model),

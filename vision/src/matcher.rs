@@ -170,6 +170,9 @@ pub struct Located {
     /// Fraction of its camera-facing wireframe that runs along edgels in the left image (1 when
     /// not verified in the image).
     pub image_support: f64,
+    /// The model's grasp positions in the `cam` frame: `cam_from_gripper` and the jaw opening
+    /// (metres).
+    pub grasps: Vec<(Isometry3<f64>, f64)>,
 }
 
 /// Acute angle between two lines (directions up to sign).
@@ -512,6 +515,7 @@ pub fn locate(
                 support_fraction: fraction,
                 scene_lines: used,
                 image_support: c.image_support,
+                grasps: model.grasps.iter().map(|(g, w)| (c.pose * g, *w)).collect(),
             });
             continue 'instances;
         }
@@ -815,6 +819,11 @@ mod tests {
             assert!(pos_err < 1e-3, "case {k}: {:.2} mm off", pos_err * 1e3);
             assert!(rot_err < 0.5f64.to_radians(), "case {k}: {:.2} deg off", rot_err.to_degrees());
             assert_eq!(found.len(), 1, "case {k}: a second, false instance");
+            // The grasp comes out in the camera frame, where the model's pose puts it.
+            let (cam_from_gripper, width) = found[0].grasps[0];
+            let expect = pose * model.grasps[0].0;
+            assert!((cam_from_gripper.translation.vector - expect.translation.vector).norm() < 1e-3);
+            assert_eq!(width, model.grasps[0].1);
         }
     }
 
