@@ -4,7 +4,7 @@
 //! judged from the physics alone: held = between the fingers and lifted with them; placed = at
 //! rest inside the bin.
 
-use anyhow::{Context, Result, anyhow};
+use anyhow::{Result, anyhow};
 use mesh::Model;
 use nalgebra::{Isometry3, Point3, Vector3};
 use robot::pick::{Action, GraspCandidate, PickPlan, PickRequest, PlaceTarget, grasp_variants, plan_pick};
@@ -38,7 +38,7 @@ pub struct Workcell {
 
 impl Workcell {
     pub fn new(scn: &Scenario) -> Result<Workcell> {
-        let no_robot = || anyhow!("{}: no [robot] section", scn.path.display());
+        let no_robot = || anyhow!("{}: no [robot] section: this world has no arm to pick with", scn.path.display());
         let spec = scn.world.robot.as_ref().ok_or_else(no_robot)?;
         let urdf = scn.robot_urdf.clone().ok_or_else(no_robot)?;
         let arm = Arm::from_urdf_file(&urdf)?;
@@ -167,6 +167,7 @@ impl<'a> PickCell<'a> {
 
     /// Plans and executes the pick of object `id` into the first bin.
     pub fn pick(&mut self, id: u32, seed: u64) -> Result<PickOutcome> {
+        self.body(id)?;
         let req = self.request(id, seed)?;
         let plan = plan_pick(&self.work.arm, &self.work.ik, &req);
         self.run_plan(id, plan)
@@ -355,7 +356,7 @@ pub fn grasp_candidates(model: &Model, base_from_model: &Isometry3<f64>) -> Vec<
 /// Loads the scenario and its workcell, with context naming the world file.
 pub fn load(path: &std::path::Path) -> Result<(Scenario, Workcell)> {
     let scn = Scenario::load(path)?;
-    let work = Workcell::new(&scn).with_context(|| format!("{}: the robot", path.display()))?;
+    let work = Workcell::new(&scn)?;
     Ok((scn, work))
 }
 
