@@ -122,14 +122,11 @@ impl SimArm {
             let i = link_names.iter().position(|n| n == name).ok_or_else(|| err(format!("no link `{name}`")))?;
             Ok::<_, SimArmError>(handles.links[i].body)
         };
-        let joints = [
-            joint("zed")?,
-            joint("shoulder")?,
-            joint("elbow")?,
-            joint("wrist_yaw")?,
-            joint("wrist_pitch")?,
-            joint("wrist_roll")?,
-        ];
+        let mut joints = Vec::with_capacity(6);
+        for name in ARM_JOINTS {
+            joints.push(joint(name)?);
+        }
+        let joints: [MultibodyJointHandle; 6] = joints.try_into().expect("six arm joints");
         let fingers = [joint(FINGER_JOINTS[0])?, joint(FINGER_JOINTS[1])?];
         let effort = |name: &str| urdf.joints.iter().find(|j| j.name == name).map_or(0.0, |j| j.limit.effort as f32);
         let arm = SimArm {
