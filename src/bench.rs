@@ -198,7 +198,7 @@ pub fn run(target: BenchTarget) -> anyhow::Result<()> {
             let fe = vision::slices::run_sliced(&left, &right, &s.calib, &params, 8);
             let lines: Vec<vision::matcher::Seg> =
                 fe.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
-            let evidence = vision::verify::ImageEvidence { cam: &s.calib.left, edges: &fe.left };
+            let evidence = vision::verify::ImageEvidence::of(&s.calib.left, &fe);
             let matching = median_ms(args.runs, || {
                 std::hint::black_box(vision::matcher::locate_all(&models, &lines, &mp, Some(&evidence)));
             });
@@ -206,7 +206,7 @@ pub fn run(target: BenchTarget) -> anyhow::Result<()> {
                 let fe = vision::slices::run_sliced(&left, &right, &s.calib, &params, 8);
                 let lines: Vec<vision::matcher::Seg> =
                     fe.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
-                let evidence = vision::verify::ImageEvidence { cam: &s.calib.left, edges: &fe.left };
+                let evidence = vision::verify::ImageEvidence::of(&s.calib.left, &fe);
                 std::hint::black_box(vision::matcher::locate_all(&models, &lines, &mp, Some(&evidence)));
             });
             results.push(("match", matching));

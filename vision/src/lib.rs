@@ -26,6 +26,7 @@ pub mod matcher;
 pub mod pmf;
 pub mod pose_fit;
 pub mod rectify;
+pub mod second_look;
 pub mod slices;
 pub mod strings;
 pub mod verify;

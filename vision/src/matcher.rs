@@ -176,7 +176,7 @@ pub struct Located {
 }
 
 /// Acute angle between two lines (directions up to sign).
-fn line_angle(u: &Vector3<f64>, v: &Vector3<f64>) -> f64 {
+pub(crate) fn line_angle(u: &Vector3<f64>, v: &Vector3<f64>) -> f64 {
     u.dot(v).abs().min(1.0).acos()
 }
 
@@ -250,7 +250,7 @@ pub fn correspondences_at(
 
 /// Support of a pose: per model line, the scene length along it (capped at its length), summed;
 /// with the (model line, scene line, overlap) correspondences behind it.
-fn support(
+pub(crate) fn support(
     model: &MatcherModel,
     pose: &Isometry3<f64>,
     scene: &[Seg],
@@ -550,15 +550,27 @@ pub fn locate_all(
     image: Option<&crate::verify::ImageEvidence>,
 ) -> Vec<Located> {
     use rayon::prelude::*;
-    let mut all: Vec<Located> = models.par_iter().flat_map(|m| locate(m, scene, p, image)).collect();
-    let score = |l: &Located| l.support * l.image_support;
-    all.sort_by(|a, b| score(b).total_cmp(&score(a)));
+    let all: Vec<Located> = models.par_iter().flat_map(|m| locate(m, scene, p, image)).collect();
+    let mut kept = Vec::new();
     let mut claimed = vec![false; scene.len()];
-    let mut kept: Vec<Located> = Vec::new();
+    resolve(models, all, &mut kept, &mut claimed);
+    if let Some(ev) = image.filter(|ev| !ev.lines.is_empty()) {
+        let second: Vec<Located> =
+            models.par_iter().flat_map(|m| crate::second_look::locate(m, scene, &claimed, p, ev)).collect();
+        resolve(models, second, &mut kept, &mut claimed);
+    }
+    kept
+}
+
+/// Adds `reports` to `kept`, best first, unless one reuses over 30% of lines already claimed or
+/// sits inside a kept object; claims the lines of those it keeps.
+fn resolve(models: &[MatcherModel], mut reports: Vec<Located>, kept: &mut Vec<Located>, claimed: &mut [bool]) {
+    let score = |l: &Located| l.support * l.image_support;
+    reports.sort_by(|a, b| score(b).total_cmp(&score(a)));
     let extent = |name: &str| {
         models.iter().find(|m| m.name == name).map_or((nalgebra::Point3::origin(), 0.0), |m| m.bounding_sphere())
     };
-    for loc in all {
+    for loc in reports {
         let shared = loc.scene_lines.iter().filter(|&&j| claimed[j]).count();
         if shared * 10 > loc.scene_lines.len() * 3 {
             continue; // over 30% of its evidence is another object's
@@ -578,7 +590,6 @@ pub fn locate_all(
         }
         kept.push(loc);
     }
-    kept
 }
 
 /// The best-supported poses (up to `HYPOTHESES`, no two alike) among the hypotheses that

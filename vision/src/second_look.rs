@@ -1,0 +1,244 @@
+//! A second look for objects stereo gave too few 3D lines to seed from: one unexplained 3D line
+//! and one image line that stereo could not lift (an edge near the rasters' direction) meeting
+//! it at a corner.
+//!
+//! The 3D line, taken as a model edge running out of a corner, fixes the pose but for a turn
+//! about the line and a shift along it. The image line's plane through the camera must hold the
+//! model edge that leaves the same corner: its direction fixes the turn (up to two solutions of
+//! `A cos θ + B sin θ + C = 0`) and the corner itself, which lies in that plane, fixes the shift.
+//! Such poses rest on little 3D evidence, so they must be borne out by the image: most of the
+//! camera-facing wireframe along edgels.
+
+use crate::matcher::{Located, MatchParams, MatcherModel, Seg, line_angle, support};
+use crate::verify::{ImageEvidence, ImageLine, image_support_at_least};
+use nalgebra::{Isometry3, Point2, Point3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3};
+
+/// The image line's corner end must lie this close to where it meets the 3D line's image (px).
+const CORNER_PX: f64 = 8.0;
+/// The corner may lie this far beyond the 3D line's imaged ends (px): stereo loses line ends.
+const BEYOND_PX: f64 = 40.0;
+/// A pose from a second look must run along edgels for this much of its camera-facing wireframe.
+const MIN_IMAGE_SUPPORT: f64 = 0.85;
+/// Candidates verified per model.
+const CANDIDATES: usize = 8;
+
+/// Two model edges leaving one corner: `corner` and the unit directions out of it.
+struct Corner {
+    line: usize,
+    corner: Point3<f64>,
+    out: Vector3<f64>,
+    other_out: Vector3<f64>,
+}
+
+fn corners(model: &MatcherModel) -> Vec<Corner> {
+    let mut out = Vec::new();
+    for (i, li) in model.lines.iter().enumerate() {
+        for (k, lk) in model.lines.iter().enumerate() {
+            if i == k || line_angle(&li.dir, &lk.dir) < 0.35 {
+                continue;
+            }
+            for (ci, ei) in [(li.a, li.b), (li.b, li.a)] {
+                for (ck, ek) in [(lk.a, lk.b), (lk.b, lk.a)] {
+                    if (ci - ck).norm() < 1e-6 {
+                        out.push(Corner {
+                            line: i,
+                            corner: ci,
+                            out: (ei - ci).normalize(),
+                            other_out: (ek - ck).normalize(),
+                        });
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Where the lines through `p0`-`p1` and `q0`-`q1` cross, as a parameter along the first.
+fn crossing(p0: &Point2<f64>, p1: &Point2<f64>, q0: &Point2<f64>, q1: &Point2<f64>) -> Option<(f64, Point2<f64>)> {
+    let (d, e) = (p1 - p0, q1 - q0);
+    let den = d.x * e.y - d.y * e.x;
+    if den.abs() < 1e-9 {
+        return None;
+    }
+    let w = q0 - p0;
+    let s = (w.x * e.y - w.y * e.x) / den;
+    Some((s, p0 + d * s))
+}
+
+/// Poses putting `c.line` along scene line `s` (out of the corner along `u_out`) and
+/// `c.other` in the plane of image line `l`.
+fn poses(model_line: &Seg, c: &Corner, s: &Seg, u_out: &Vector3<f64>, l: &ImageLine) -> Vec<Isometry3<f64>> {
+    let r0 = Rotation3::rotation_between(&c.out, u_out)
+        .unwrap_or_else(|| Rotation3::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI));
+    let (n, u, v) = (l.normal, *u_out, r0 * c.other_out);
+    let (a, b, cc) = (n.dot(&v) - n.dot(&u) * u.dot(&v), n.dot(&u.cross(&v)), n.dot(&u) * u.dot(&v));
+    let rho = a.hypot(b);
+    if rho < 1e-9 || cc.abs() > rho || n.dot(&u).abs() < 0.05 {
+        return Vec::new();
+    }
+    let (base, delta) = (b.atan2(a), (-cc / rho).acos());
+    let axis = Unit::new_unchecked(u);
+    // The corner lies on the scene line where it meets the plane.
+    let s0 = if u.dot(&s.dir) > 0.0 { s.a } else { s.b };
+    let lambda = -n.dot(&s0.coords) / n.dot(&u);
+    // The fragment (starting at s0) must lie along the model edge, out of the corner.
+    let slack = 0.012;
+    if -lambda < -slack || -lambda > model_line.len - s.len + slack {
+        return Vec::new();
+    }
+    let corner_scene = s0 + u * lambda;
+    [base + delta, base - delta]
+        .into_iter()
+        .map(|theta| {
+            let r = Rotation3::from_axis_angle(&axis, theta) * r0;
+            let t = corner_scene - r * c.corner;
+            Isometry3::from_parts(Translation3::from(t), UnitQuaternion::from_rotation_matrix(&r))
+        })
+        .collect()
+}
+
+/// Objects of `model` found from the unclaimed 3D lines and the unlifted image lines.
+pub fn locate(
+    model: &MatcherModel,
+    scene: &[Seg],
+    claimed: &[bool],
+    p: &MatchParams,
+    ev: &ImageEvidence,
+) -> Vec<Located> {
+    let corners = corners(model);
+    let mut best: Vec<(f64, Isometry3<f64>)> = Vec::new();
+    for (j, s) in scene.iter().enumerate() {
+        if claimed[j] || s.len < p.min_seed_length {
+            continue;
+        }
+        let (Some(pa), Some(pb)) = (ev.cam.project_cam(&s.a), ev.cam.project_cam(&s.b)) else { continue };
+        let len_px = (pb - pa).norm();
+        if len_px < 1.0 {
+            continue;
+        }
+        for l in &ev.lines {
+            let Some((t, x)) = crossing(&pa, &pb, &l.a, &l.b) else { continue };
+            let beyond = BEYOND_PX / len_px;
+            if t < -beyond || t > 1.0 + beyond {
+                continue;
+            }
+            // The image line must start at the corner.
+            if (l.a - x).norm() > CORNER_PX && (l.b - x).norm() > CORNER_PX {
+                continue;
+            }
+            // Out of the corner, the 3D line runs towards its far imaged end.
+            let u_out = if t < 0.5 { s.dir } else { -s.dir };
+            for c in &corners {
+                let ml = &model.lines[c.line];
+                if s.len > ml.len + 0.012 {
+                    continue;
+                }
+                for pose in poses(ml, c, s, &u_out, l) {
+                    if let Some(score) = image_support_at_least(model, &pose, ev, MIN_IMAGE_SUPPORT) {
+                        keep(&mut best, score, pose);
+                    }
+                }
+            }
+        }
+    }
+    let free: Vec<bool> = claimed.iter().map(|c| !c).collect();
+    best.into_iter()
+        .filter_map(|(image_support, pose)| {
+            let (score, pairs) = support(model, &pose, scene, &free, p);
+            let mut used: Vec<usize> = pairs.iter().map(|&(_, j, _)| j).collect();
+            used.sort_unstable();
+            used.dedup();
+            (!used.is_empty()).then(|| Located {
+                model: model.name.clone(),
+                cam_from_model: pose,
+                support: score,
+                support_fraction: score / model.total_length,
+                scene_lines: used,
+                image_support,
+                grasps: model.grasps.iter().map(|(g, w)| (pose * g, *w)).collect(),
+            })
+        })
+        .take(1)
+        .collect()
+}
+
+fn keep(best: &mut Vec<(f64, Isometry3<f64>)>, score: f64, pose: Isometry3<f64>) {
+    let at = best.iter().position(|(s, _)| *s < score).unwrap_or(best.len());
+    best.insert(at, (score, pose));
+    best.truncate(CANDIDATES);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::canny::{EdgeMap, Edgel};
+    use mesh::PinholeCamera;
+
+    /// A block seen by a camera above it, with one 3D line (a fragment of a top edge) and, in the
+    /// image, edgels along every camera-facing edge and an image line along each of them.
+    #[test]
+    fn one_3d_line_and_the_image_find_a_block() {
+        let lib = mesh::Library::load_default().unwrap();
+        let model = MatcherModel::from_model(lib.get("block").unwrap());
+        let cam = PinholeCamera::looking_at(
+            (512, 512),
+            1000.0,
+            [255.5, 255.5],
+            Point3::new(0.0, -0.6, 0.6),
+            Point3::origin(),
+            Vector3::z(),
+        );
+        let world_from_model = Isometry3::from_parts(
+            Translation3::new(0.01, -0.02, 0.015),
+            UnitQuaternion::from_euler_angles(0.0, 0.0, 0.5),
+        );
+        let pose = cam.cam_from_world() * world_from_model;
+        let facing = |k: usize| {
+            let l = &model.lines[k];
+            let mid = pose * (l.a + (l.b - l.a) * 0.5);
+            model.faces[k].iter().any(|n| (pose.rotation * n).dot(&-mid.coords) > 0.0)
+        };
+        let mut edges = EdgeMap::new(512, 512);
+        let mut lines = Vec::new();
+        for k in (0..model.lines.len()).filter(|&k| facing(k)) {
+            let l = model.lines[k].transformed(&pose);
+            let (a, b) = (cam.project_cam(&l.a).unwrap(), cam.project_cam(&l.b).unwrap());
+            let d = (b - a).normalize();
+            let steps = (b - a).norm() as usize;
+            for s in 0..=steps {
+                let q = a + (b - a) * (s as f64 / steps.max(1) as f64);
+                let (x, y) = (q.x.round() as usize, q.y.round() as usize);
+                if x < 512 && y < 512 && edges.edgel_at(x, y).is_none() {
+                    let orientation = (d.x).atan2(-d.y) as f32; // the gradient, across the edge
+                    edges.push(y * 512 + x, Edgel { x: q.x as f32, y: q.y as f32, orientation, contrast: 50.0 });
+                }
+            }
+            let normal = cam.ray_cam(a.x, a.y).cross(&cam.ray_cam(b.x, b.y)).normalize();
+            lines.push(ImageLine { a, b, normal });
+        }
+        // The one 3D line: 80% of the longest camera-facing edge.
+        let k = (0..model.lines.len())
+            .filter(|&k| facing(k))
+            .max_by(|&a, &b| model.lines[a].len.total_cmp(&model.lines[b].len))
+            .unwrap();
+        let t = model.lines[k].transformed(&pose);
+        let scene = vec![Seg::new(t.a + (t.b - t.a) * 0.1, t.a + (t.b - t.a) * 0.9)];
+        let ev = ImageEvidence { cam: &cam, edges: &edges, lines };
+        let found = locate(&model, &scene, &[false], &MatchParams::default(), &ev);
+        assert_eq!(found.len(), 1);
+        // Right up to the block's symmetry: every located edge lies on a true edge.
+        let got = found[0].cam_from_model;
+        for l in &model.lines {
+            let (a, b) = (got * l.a, got * l.b);
+            assert!(
+                model.lines.iter().any(|m| {
+                    let (ma, mb) = (pose * m.a, pose * m.b);
+                    ((ma - a).norm() < 1e-3 && (mb - b).norm() < 1e-3)
+                        || ((ma - b).norm() < 1e-3 && (mb - a).norm() < 1e-3)
+                }),
+                "a located edge is off the block"
+            );
+        }
+    }
+}
