@@ -10,14 +10,14 @@ use rapier3d::prelude::*;
 use rapier3d_urdf::{UrdfLoaderOptions, UrdfMultibodyOptions, UrdfRobot};
 use std::path::Path;
 
-/// Joint names the controller drives, as in the URDF.
-pub const ARM_JOINTS: [&str; 6] = ["zed", "shoulder", "elbow", "wrist_yaw", "wrist_pitch", "wrist_roll"];
-pub const FINGER_JOINTS: [&str; 2] = ["finger_left", "finger_right"];
+// The joint and link names and the URDF origin convention are the arm model's (`robot::arm`):
+// the simulated arm and the planner's must be the same arm.
+pub use robot::arm::{ARM_JOINTS, FINGER_JOINTS};
+use robot::arm::{TCP_LINK, origin_pose};
 /// Where the arm waits: folded, the gripper 0.215 m over the table, clear of the workspace.
 pub const HOME: [f64; 6] = [0.5, 0.0, 2.0, 0.0, 0.0, 0.0];
 /// The link the gripper (tool centre point) frame is fixed to, and the tcp's offset along its z.
 const GRIPPER_LINK: &str = "gripper";
-const TCP_LINK: &str = "tcp";
 
 /// Position-motor gains of the arm joints (acceleration-based: independent of link masses).
 /// 400 rad/s natural frequency, critically damped: gravity sags zed by g/k = 0.06 mm.
@@ -222,16 +222,6 @@ impl SimArm {
     pub fn world_from_gripper(&self, cell: &Cell) -> Isometry3<f64> {
         convert::iso(cell.world.bodies[self.gripper_body].position()) * self.gripper_from_tcp
     }
-}
-
-/// A URDF `<origin>`: rpy are fixed-axis roll, pitch, yaw.
-fn origin_pose(pose: &rapier3d_urdf::urdf_rs::Pose) -> Isometry3<f64> {
-    let [x, y, z] = pose.xyz.0;
-    let [roll, pitch, yaw] = pose.rpy.0;
-    Isometry3::from_parts(
-        nalgebra::Translation3::new(x, y, z),
-        nalgebra::UnitQuaternion::from_euler_angles(roll, pitch, yaw),
-    )
 }
 
 /// The value of a one-degree-of-freedom joint.
