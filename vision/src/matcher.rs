@@ -56,6 +56,9 @@ pub struct MatcherModel {
     /// Grasp positions: `model_from_gripper` and jaw opening (metres).
     pub grasps: Vec<(Isometry3<f64>, f64)>,
     pub total_length: f64,
+    /// The characteristic views' focus pairs, tabled on the first search (they depend only on
+    /// the model and the number of focus lines, which are kept with them).
+    views: std::sync::OnceLock<(usize, Vec<Vec<FocusPair>>)>,
 }
 
 impl MatcherModel {
@@ -68,6 +71,7 @@ impl MatcherModel {
             total_length: lines.iter().map(|l| l.len).sum(),
             grasps: m.grasps.iter().map(|g| (g.model_from_gripper, g.opening)).collect(),
             lines,
+            views: std::sync::OnceLock::new(),
         }
     }
 }
@@ -476,7 +480,15 @@ pub fn locate(
     p: &MatchParams,
     image: Option<&crate::verify::ImageEvidence>,
 ) -> Vec<Located> {
-    let views = characteristic_views(model, p);
+    // Tabled once per model; a search with another number of focus lines tables its own.
+    let tabled = model.views.get_or_init(|| (p.focus_lines, characteristic_views(model, p)));
+    let own;
+    let views = if tabled.0 == p.focus_lines {
+        &tabled.1
+    } else {
+        own = characteristic_views(model, p);
+        &own
+    };
     let mut free = vec![true; scene.len()];
     let mut found = Vec::new();
     'instances: for _ in 0..p.max_instances {
