@@ -494,7 +494,7 @@ pub fn locate(
     'instances: for _ in 0..p.max_instances {
         // The best-supported hypotheses, each refined and checked against the image, are
         // verified in order of both kinds of evidence; the first that passes is the next instance.
-        let mut candidates: Vec<Candidate> = best_hypotheses(model, scene, &free, &views, p)
+        let mut candidates: Vec<Candidate> = best_hypotheses(model, scene, &free, views, p)
             .into_iter()
             .map(|start| {
                 let (pose, score, pairs) = refine(model, scene, &free, start, p);
