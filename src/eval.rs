@@ -310,8 +310,8 @@ pub fn quantile(v: &[f64], q: f64) -> f64 {
     v[((v.len() - 1) as f64 * q).round() as usize]
 }
 
-/// Fraction of an object's feature-edge length the left camera sees.
-fn visible_fraction(
+/// Fraction of an object's feature-edge length the left camera sees (`depth`: its depth map, metres).
+pub fn visible_fraction(
     model: &mesh::Model,
     cam_from_model: &nalgebra::Isometry3<f64>,
     cam: &mesh::PinholeCamera,

@@ -4,7 +4,7 @@
 use crate::eval_cmd::{matcher_models, run_pipeline};
 use anyhow::{Context, bail};
 use image::{Rgb, RgbImage};
-use marvin::eval::{CORRECT_POS_M, CORRECT_ROT_DEG, pose_error, symmetries};
+use marvin::eval::{CORRECT_POS_M, CORRECT_ROT_DEG, pose_error, symmetries, visible_fraction};
 use nalgebra::Isometry3;
 use sim::Scenario;
 use std::path::Path;
@@ -97,6 +97,20 @@ pub fn run(
             ))?;
         }
         crate::emit(&format!("missed: {}", if missed.is_empty() { "none".to_string() } else { missed.join(", ") }))?;
+        // Why each was missed: what the matcher could have found at the true pose.
+        let mp = MatchParams::default();
+        for (i, (name, pose)) in
+            truths.iter().enumerate().filter(|(i, (m, _))| !taken[*i] && sought_names.contains(&m.as_str()))
+        {
+            let Some(model) = sought.iter().find(|m| &m.name == name) else { continue };
+            let visible = visible_fraction(&scn.library.models[name], pose, &calib.left, &p.left.depth);
+            let (support, lines_seen) = vision::matcher::support_at(model, pose, &lines, &mp);
+            let image = vision::verify::image_support(model, pose, &evidence);
+            crate::emit(&format!(
+                "  {name} (object {i}): {:.0}% of its edges visible; at its true pose 3D support {support:.2} on {lines_seen} lines, image {image:.2}",
+                visible * 100.0
+            ))?;
+        }
     }
     if let Some(dir) = out {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;

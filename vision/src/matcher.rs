@@ -20,7 +20,9 @@
 //!
 //! Scene lines come from stereo with no particular direction, so each is used both ways round.
 
-use crate::pose_fit::{DirectionPair, PointOnLine, pose_from_lines};
+use crate::pose_fit::{
+    DirectionPair, PointOnLine, pose_from_lines, rotation_from_two_directions, translation_from_points,
+};
 use nalgebra::{Isometry3, Point3, Vector3};
 use serde::{Deserialize, Serialize};
 
@@ -43,6 +45,17 @@ impl Seg {
     pub fn transformed(&self, pose: &Isometry3<f64>) -> Seg {
         Seg::new(pose * self.a, pose * self.b)
     }
+
+    /// The segment moved by rotation matrix `r` and translation `t`: the hot loops' form (a
+    /// matrix turns a point in half the operations a quaternion does, and the length stays).
+    fn moved(&self, r: &nalgebra::Matrix3<f64>, t: &Vector3<f64>) -> Seg {
+        Seg {
+            a: Point3::from(r * self.a.coords + t),
+            b: Point3::from(r * self.b.coords + t),
+            dir: r * self.dir,
+            len: self.len,
+        }
+    }
 }
 
 /// A model as the matcher sees it.
@@ -56,6 +69,10 @@ pub struct MatcherModel {
     /// Grasp positions: `model_from_gripper` and jaw opening (metres).
     pub grasps: Vec<(Isometry3<f64>, f64)>,
     pub total_length: f64,
+    /// Centre and radius of a sphere holding the wireframe.
+    sphere: (Point3<f64>, f64),
+    /// The lines' indices, longest first (the order support is counted in).
+    longest_first: Vec<usize>,
     /// The characteristic views' focus pairs, tabled on the first search (they depend only on
     /// the model and the number of focus lines, which are kept with them).
     views: std::sync::OnceLock<(usize, Vec<Vec<FocusPair>>)>,
@@ -65,7 +82,14 @@ impl MatcherModel {
     pub fn from_model(m: &mesh::Model) -> MatcherModel {
         let lines: Vec<Seg> = m.wireframe.iter().map(|s| Seg::new(s.a, s.b)).collect();
         let faces = lines.iter().map(|l| faces_along(&m.mesh, l)).collect();
+        let n = (2 * lines.len()).max(1) as f64;
+        let centre = Point3::from(lines.iter().map(|l| l.a.coords + l.b.coords).sum::<Vector3<f64>>() / n);
+        let radius = lines.iter().flat_map(|l| [l.a, l.b]).map(|p| (p - centre).norm()).fold(0.0, f64::max);
+        let mut longest_first: Vec<usize> = (0..lines.len()).collect();
+        longest_first.sort_by(|&a, &b| lines[b].len.total_cmp(&lines[a].len));
         MatcherModel {
+            sphere: (centre, radius),
+            longest_first,
             name: m.name.clone(),
             faces,
             total_length: lines.iter().map(|l| l.len).sum(),
@@ -97,10 +121,14 @@ fn faces_along(mesh: &mesh::TriMesh, line: &Seg) -> Vec<Vector3<f64>> {
 impl MatcherModel {
     /// Centre (mean of the line ends) and radius of a sphere holding the wireframe.
     pub fn bounding_sphere(&self) -> (Point3<f64>, f64) {
-        let n = (2 * self.lines.len()).max(1) as f64;
-        let c = Point3::from(self.lines.iter().map(|l| l.a.coords + l.b.coords).sum::<Vector3<f64>>() / n);
-        let r = self.lines.iter().flat_map(|l| [l.a, l.b]).map(|p| (p - c).norm()).fold(0.0, f64::max);
-        (c, r)
+        self.sphere
+    }
+
+    /// Where a scene line must lie to support the model at `pose`: both its ends within
+    /// `support_distance` of the wireframe, hence its midpoint within the returned distance of
+    /// the returned centre.
+    fn reach_at(&self, pose: &Isometry3<f64>, p: &MatchParams) -> (Point3<f64>, f64) {
+        (pose * self.sphere.0, self.sphere.1 + p.support_distance)
     }
 
     /// Wireframe length a camera at the origin could see with the model at `pose` (lines with a
@@ -265,11 +293,15 @@ pub(crate) fn support(
     let mut pairs = Vec::new();
     // Compared as cosines: an arc cosine per candidate was a tenth of the matcher's time.
     let cos_tolerance = p.angle_tolerance.cos();
+    let near: Vec<(usize, &Seg)> = {
+        let (centre, reach) = model.reach_at(pose, p);
+        scene.iter().enumerate().filter(|(j, sl)| free[*j] && within(&sl.a, &sl.b, &centre, reach)).collect()
+    };
     for (i, ml) in model.lines.iter().enumerate() {
         let t = ml.transformed(pose);
         let mid = t.a + (t.b - t.a) * 0.5;
         let mut along = 0.0;
-        for (j, sl) in scene.iter().enumerate().filter(|(j, _)| free[*j]) {
+        for &(j, sl) in &near {
             // Cheap rejection first: a supporting line lies within the model line's reach.
             let reach = 0.5 * (t.len + sl.len) + p.support_distance;
             if (sl.a + (sl.b - sl.a) * 0.5 - mid).norm_squared() > reach * reach {
@@ -284,6 +316,11 @@ pub(crate) fn support(
         total += along.min(ml.len);
     }
     (total, pairs)
+}
+
+/// Whether the midpoint of `a`-`b` lies within `reach` of `centre`.
+fn within(a: &Point3<f64>, b: &Point3<f64>, centre: &Point3<f64>, reach: f64) -> bool {
+    (nalgebra::center(a, b) - centre).norm_squared() <= reach * reach
 }
 
 /// The free scene lines laid out for [`support_score`]: index, midpoint and half length.
@@ -302,40 +339,37 @@ impl FreeLines {
     }
 }
 
-/// The model's lines, longest first.
-fn longest_first(model: &MatcherModel) -> Vec<usize> {
-    let mut order: Vec<usize> = (0..model.lines.len()).collect();
-    order.sort_by(|&a, &b| model.lines[b].len.total_cmp(&model.lines[a].len));
-    order
-}
-
 /// The support of a pose alone, as [`support`] measures it, without the correspondences: the
 /// inner loop of hypothesis ranking, so the free lines come laid out once per search. Model
 /// lines are taken longest first, and the count stops (`None`) as soon as even full support of
 /// the lines left could not lift the score above `floor`.
 fn support_score(
     model: &MatcherModel,
-    order: &[usize],
     pose: &Isometry3<f64>,
     scene: &[Seg],
     free: &FreeLines,
     p: &MatchParams,
     floor: f64,
+    near: &mut Vec<usize>,
 ) -> Option<f64> {
     let cos_tolerance = p.angle_tolerance.cos();
+    let (centre, reach) = model.reach_at(pose, p);
+    let rotation = pose.rotation.to_rotation_matrix().into_inner();
+    near.clear();
+    near.extend((0..free.mid.len()).filter(|&k| (free.mid[k] - centre).norm_squared() <= reach * reach));
     let (mut total, mut left) = (0.0, model.total_length);
-    for &i in order {
+    for &i in &model.longest_first {
         if total + left <= floor {
             return None;
         }
         let ml = &model.lines[i];
         left -= ml.len;
-        let t = ml.transformed(pose);
-        let mid = t.a + (t.b - t.a) * 0.5;
+        let t = ml.moved(&rotation, &pose.translation.vector);
+        let mid = nalgebra::center(&t.a, &t.b);
         let mut along = 0.0;
-        for (k, m) in free.mid.iter().enumerate() {
+        for &k in near.iter() {
             let reach = 0.5 * t.len + free.half[k] + p.support_distance;
-            if (m - mid).norm_squared() > reach * reach {
+            if (free.mid[k] - mid).norm_squared() > reach * reach {
                 continue;
             }
             along += overlap(&t, &scene[free.index[k]], cos_tolerance, p);
@@ -685,7 +719,7 @@ fn for_each_hypothesis(
     p: &MatchParams,
     sink: &mut Best,
 ) {
-    let order = longest_first(model);
+    let mut near = Vec::new();
     for sp in pairs {
         let (sj, sl) = (&scene[sp.j], &scene[sp.l]);
         let (tj, tl) = (sp.at_j, sp.at_l);
@@ -714,10 +748,7 @@ fn for_each_hypothesis(
                         continue;
                     }
                     let vl = sl.dir * sign_l;
-                    let dirs = [
-                        DirectionPair { model: mi.dir, scene: vj, weight: 1.0 },
-                        DirectionPair { model: mk.dir, scene: vl, weight: 1.0 },
-                    ];
+                    let Some(rotation) = rotation_from_two_directions([mi.dir, mk.dir], [vj, vl]) else { continue };
                     let on = |x: Point3<f64>, m: &Seg| PointOnLine {
                         scene: x,
                         model_point: m.a,
@@ -725,8 +756,9 @@ fn for_each_hypothesis(
                         weight: 1.0,
                     };
                     let points = [on(sj.a, mi), on(sj.b, mi), on(sl.a, mk), on(sl.b, mk)];
-                    let Some(pose) = pose_from_lines(&dirs, &points) else { continue };
-                    if let Some(score) = support_score(model, &order, &pose, scene, free_lines, p, sink.floor()) {
+                    let Some(t) = translation_from_points(&rotation, &points) else { continue };
+                    let pose = Isometry3::from_parts(t.into(), rotation);
+                    if let Some(score) = support_score(model, &pose, scene, free_lines, p, sink.floor(), &mut near) {
                         sink.seen(score, pose);
                     }
                 }

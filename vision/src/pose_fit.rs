@@ -39,6 +39,21 @@ pub fn rotation_from_directions(pairs: &[DirectionPair]) -> Option<UnitQuaternio
     Some(UnitQuaternion::from_quaternion(Quaternion::new(q[0], q[1], q[2], q[3])))
 }
 
+/// [`rotation_from_directions`] for two equally weighted pairs, in closed form: the optimum
+/// turns the model pair's bisector frame (the unit sum and difference of the two directions,
+/// and their cross product) onto the scene pair's, whatever the two angles between the
+/// directions. The matcher seeds thousands of hypotheses from two lines each, and an
+/// eigen-decomposition per seed was a fifth of its time. `None` when either pair is parallel.
+pub fn rotation_from_two_directions(model: [Vector3<f64>; 2], scene: [Vector3<f64>; 2]) -> Option<UnitQuaternion<f64>> {
+    let frame = |[u, v]: [Vector3<f64>; 2]| {
+        let (sum, diff) = ((u + v).try_normalize(1e-9)?, (u - v).try_normalize(1e-9)?);
+        Some(Matrix3::from_columns(&[sum, diff, sum.cross(&diff)]))
+    };
+    let (m, s) = (frame(model)?, frame(scene)?);
+    let r = nalgebra::Rotation3::from_matrix_unchecked(s * m.transpose());
+    Some(UnitQuaternion::from_rotation_matrix(&r))
+}
+
 /// A scene point that should lie on a model line (given by a point and unit direction, in the
 /// model frame), weighted.
 #[derive(Debug, Clone, Copy)]
@@ -60,8 +75,9 @@ pub fn translation_from_points(rotation: &UnitQuaternion<f64>, points: &[PointOn
         a += p.weight * across;
         b += p.weight * across * (p.scene.coords - rotation * p.model_point.coords);
     }
-    let decomposition = a.symmetric_eigen();
-    if decomposition.eigenvalues.min() < 1e-9 * decomposition.eigenvalues.max().max(1e-12) {
+    // Near-parallel lines leave `a` close to singular (its determinant is the product of its
+    // eigenvalues, its trace their sum).
+    if a.determinant() < 1e-9 * a.trace().powi(3).max(1e-36) {
         return None;
     }
     a.try_inverse().map(|inv| inv * b)
@@ -105,6 +121,25 @@ mod tests {
             .collect();
         let got = pose_from_lines(&directions, &points).unwrap();
         assert!((got.to_homogeneous() - pose.to_homogeneous()).norm() < 1e-9, "{got} vs {pose}");
+    }
+
+    #[test]
+    fn the_two_direction_closed_form_is_the_least_squares_rotation() {
+        let pose = truth();
+        let cases = [
+            ([Vector3::x(), Vector3::new(0.0, 0.6, 0.8)], Vector3::new(0.01, -0.02, 0.005)),
+            ([Vector3::new(0.3, 0.1, 0.95).normalize(), Vector3::new(-0.7, 0.7, 0.1).normalize()], Vector3::zeros()),
+            ([Vector3::y(), Vector3::new(-0.9, -0.4, 0.0).normalize()], Vector3::new(-0.03, 0.0, 0.02)),
+        ];
+        for (k, (dirs, noise)) in cases.iter().enumerate() {
+            let scene = [(pose.rotation * dirs[0] + noise).normalize(), pose.rotation * dirs[1]];
+            let pairs: Vec<DirectionPair> =
+                (0..2).map(|i| DirectionPair { model: dirs[i], scene: scene[i], weight: 1.0 }).collect();
+            let by_eigen = rotation_from_directions(&pairs).unwrap();
+            let closed = rotation_from_two_directions(*dirs, scene).unwrap();
+            assert!(closed.angle_to(&by_eigen) < 1e-9, "case {k}: {} rad apart", closed.angle_to(&by_eigen));
+        }
+        assert!(rotation_from_two_directions([Vector3::x(), Vector3::x()], [Vector3::y(), Vector3::z()]).is_none());
     }
 
     #[test]

@@ -28,6 +28,7 @@ struct Corner {
     corner: Point3<f64>,
     out: Vector3<f64>,
     other_out: Vector3<f64>,
+    other_len: f64,
 }
 
 fn corners(model: &MatcherModel) -> Vec<Corner> {
@@ -45,6 +46,7 @@ fn corners(model: &MatcherModel) -> Vec<Corner> {
                             corner: ci,
                             out: (ei - ci).normalize(),
                             other_out: (ek - ck).normalize(),
+                            other_len: lk.len,
                         });
                     }
                 }
@@ -98,6 +100,22 @@ fn poses(model_line: &Seg, c: &Corner, s: &Seg, u_out: &Vector3<f64>, l: &ImageL
         .collect()
 }
 
+/// Whether the pose images the corner's other edge along image line `l`: out of the corner
+/// the way the line runs, and at least as long (the image line is some stretch of it). Half
+/// the turns [`poses`] finds point the edge the other way, and an image line's plane holds
+/// many model edges that end well short of it; ruling these out first spares their image
+/// check, most of the second look's time.
+fn runs_along(pose: &Isometry3<f64>, c: &Corner, l: &ImageLine, ev: &ImageEvidence) -> bool {
+    let (Some(corner), Some(end)) =
+        (ev.cam.project_cam(&(pose * c.corner)), ev.cam.project_cam(&(pose * (c.corner + c.other_out * c.other_len))))
+    else {
+        return false;
+    };
+    let far = if (l.a - corner).norm() < (l.b - corner).norm() { l.b } else { l.a };
+    let (edge, line) = (end - corner, far - corner);
+    edge.dot(&line) > 0.0 && line.norm() <= edge.norm() + CORNER_PX
+}
+
 /// Objects of `model` found from the unclaimed 3D lines and the unlifted image lines.
 pub fn locate(
     model: &MatcherModel,
@@ -134,7 +152,7 @@ pub fn locate(
                 if s.len > ml.len + 0.012 {
                     continue;
                 }
-                for pose in poses(ml, c, s, &u_out, l) {
+                for pose in poses(ml, c, s, &u_out, l).into_iter().filter(|pose| runs_along(pose, c, l, ev)) {
                     if let Some(score) = image_support_at_least(model, &pose, ev, MIN_IMAGE_SUPPORT) {
                         keep(&mut best, score, pose);
                     }
@@ -224,7 +242,7 @@ mod tests {
             .unwrap();
         let t = model.lines[k].transformed(&pose);
         let scene = vec![Seg::new(t.a + (t.b - t.a) * 0.1, t.a + (t.b - t.a) * 0.9)];
-        let ev = ImageEvidence { cam: &cam, edges: &edges, lines };
+        let ev = ImageEvidence::new(&cam, &edges, lines);
         let found = locate(&model, &scene, &[false], &MatchParams::default(), &ev);
         assert_eq!(found.len(), 1);
         // Right up to the block's symmetry: every located edge lies on a true edge.

@@ -14,6 +14,8 @@ pub struct ImageEvidence<'a> {
     pub cam: &'a PinholeCamera,
     pub edges: &'a EdgeMap,
     pub lines: Vec<ImageLine>,
+    /// The edgels spread into an orientation mask, so that each sample is one look-up.
+    mask: EdgeMask,
 }
 
 /// A straight line of the left image, in pixels, with the plane through the camera centre that
@@ -29,6 +31,10 @@ pub struct ImageLine {
 const MIN_IMAGE_LINE_PX: f64 = 20.0;
 
 impl<'a> ImageEvidence<'a> {
+    pub fn new(cam: &'a PinholeCamera, edges: &'a EdgeMap, lines: Vec<ImageLine>) -> ImageEvidence<'a> {
+        ImageEvidence { cam, edges, lines, mask: EdgeMask::of(edges) }
+    }
+
     /// The evidence of one front-end run on the left camera `cam`.
     pub fn of(cam: &'a PinholeCamera, fe: &'a crate::front_end::FrontEnd) -> ImageEvidence<'a> {
         let lifted: std::collections::HashSet<u32> = fe.lines3d.iter().map(|l| l.line2).collect();
@@ -50,7 +56,7 @@ impl<'a> ImageEvidence<'a> {
                 })
                 .collect(),
         };
-        ImageEvidence { cam, edges: &fe.left, lines }
+        ImageEvidence::new(cam, &fe.left, lines)
     }
 }
 
@@ -91,16 +97,17 @@ pub fn image_support_at_least(
         }
         let steps = (len / STEP_PX) as usize;
         all += STEP_PX * (steps - 1) as f64;
-        segments.push((a, b, (b - a) / len, steps));
+        let dir = (b - a) / len;
+        segments.push((a, b, dir, EdgeMask::bins_along(dir), steps));
     }
     if all <= 0.0 {
         return (min <= 0.0).then_some(0.0);
     }
     let (mut seen, mut missed) = (0.0, 0.0);
-    for (a, b, dir, steps) in segments {
+    for (a, b, dir, bins, steps) in segments {
         for k in 1..steps {
             let q = a + (b - a) * (k as f64 / steps as f64);
-            if edgel_along(ev.edges, q.x, q.y, dir) {
+            if ev.mask.any_near(q.x, q.y, bins) && edgel_along(ev.edges, q.x, q.y, dir) {
                 seen += STEP_PX;
             } else {
                 missed += STEP_PX;
@@ -111,6 +118,61 @@ pub fn image_support_at_least(
         }
     }
     Some(seen / all)
+}
+
+/// Per pixel, a bit for each orientation (of 32 across 180 deg) of the edgels that the exact
+/// test ([`edgel_along`]) would look at from there. Laid out once per image, it settles most
+/// samples with one look-up, since a sample off the model's true place mostly finds no edgel
+/// at all: searching every sample's neighbourhood took most of the verification time.
+struct EdgeMask {
+    width: usize,
+    height: usize,
+    bits: Vec<u32>,
+}
+
+/// Orientation bins of the mask.
+const BINS: f64 = 32.0;
+
+impl EdgeMask {
+    fn of(edges: &EdgeMap) -> EdgeMask {
+        let (width, height) = (edges.width, edges.height);
+        let mut bits = vec![0u32; width * height];
+        let r = NEAR_PX.ceil() as usize;
+        for (e, &pixel) in edges.edgels.iter().zip(&edges.pixel) {
+            let bit = 1u32 << Self::bin(e.orientation as f64);
+            let (cx, cy) = (pixel as usize % width, pixel as usize / width);
+            for py in cy.saturating_sub(r)..=(cy + r).min(height - 1) {
+                for px in cx.saturating_sub(r)..=(cx + r).min(width - 1) {
+                    bits[py * width + px] |= bit;
+                }
+            }
+        }
+        EdgeMask { width, height, bits }
+    }
+
+    /// The bin of an edge whose gradient points along `angle` (edges are taken both ways round).
+    fn bin(angle: f64) -> u32 {
+        let a = angle.rem_euclid(std::f64::consts::PI);
+        ((a / std::f64::consts::PI * BINS) as u32).min(BINS as u32 - 1)
+    }
+
+    /// Every bin holding orientations of edges that run within [`ALONG_RAD`] of image
+    /// direction `dir`.
+    fn bins_along(dir: Vector2<f64>) -> u32 {
+        let width = std::f64::consts::PI / BINS;
+        let gradient = dir.x.atan2(-dir.y).rem_euclid(std::f64::consts::PI) / width;
+        let (lo, hi) = ((gradient - ALONG_RAD / width).floor() as i64, (gradient + ALONG_RAD / width).floor() as i64);
+        (lo..=hi).fold(0, |m, b| m | 1 << b.rem_euclid(BINS as i64))
+    }
+
+    /// Whether an edgel of one of `bins` lies in the neighbourhood [`edgel_along`] searches
+    /// from image point (`x`, `y`).
+    fn any_near(&self, x: f64, y: f64, bins: u32) -> bool {
+        // Just off the image the search still reaches its edge, whose pixels' bits cover it.
+        let px = x.round().clamp(0.0, self.width as f64 - 1.0) as usize;
+        let py = y.round().clamp(0.0, self.height as f64 - 1.0) as usize;
+        self.bits[py * self.width + px] & bins != 0
+    }
 }
 
 fn edgel_along(edges: &EdgeMap, x: f64, y: f64, dir: Vector2<f64>) -> bool {
@@ -134,4 +196,49 @@ fn edgel_along(edges: &EdgeMap, x: f64, y: f64, dir: Vector2<f64>) -> bool {
         }
     }
     false
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::canny::Edgel;
+
+    /// The mask only spares work: wherever the exact search finds an edgel along a direction,
+    /// the mask says there may be one (tried on random edgels, points and directions).
+    #[test]
+    fn the_mask_never_rules_out_what_the_exact_search_finds() {
+        let mut state = 12345u64;
+        let mut next = move || {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut edges = EdgeMap::new(64, 64);
+        for _ in 0..600 {
+            let (px, py) = ((next() * 64.0) as usize, (next() * 64.0) as usize);
+            if edges.edgel_at(px, py).is_none() {
+                let (x, y) = (px as f64 + next() - 0.5, py as f64 + next() - 0.5);
+                let orientation = (next() * 4.0 - 2.0) * std::f64::consts::PI;
+                edges.push(
+                    py * 64 + px,
+                    Edgel { x: x as f32, y: y as f32, orientation: orientation as f32, contrast: 9.0 },
+                );
+            }
+        }
+        let mask = EdgeMask::of(&edges);
+        let (mut found, mut spared) = (0, 0);
+        for _ in 0..20000 {
+            let (x, y) = (next() * 66.0 - 1.0, next() * 66.0 - 1.0);
+            let angle = next() * std::f64::consts::TAU;
+            let dir = Vector2::new(angle.cos(), angle.sin());
+            let near = mask.any_near(x, y, EdgeMask::bins_along(dir));
+            if edgel_along(&edges, x, y, dir) {
+                found += 1;
+                assert!(near, "the mask ruled out an edgel along {dir:?} near ({x:.2}, {y:.2})");
+            } else if !near {
+                spared += 1;
+            }
+        }
+        // Both outcomes happen, so the test says something.
+        assert!(found > 1000 && spared > 1000, "found {found}, spared {spared}");
+    }
 }
