@@ -417,10 +417,8 @@ struct FocusPair {
 /// round, is left out: the hypotheses it would give are the same poses (up to the symmetry,
 /// which is as correct), and each costs a support evaluation.
 fn focus_pairs_among(model: &MatcherModel, lines: &[usize], p: &MatchParams, tabled: &[FocusPair]) -> Vec<FocusPair> {
-    let mut order = lines.to_vec();
-    order.sort_by(|&a, &b| model.lines[b].len.total_cmp(&model.lines[a].len));
     let mut out: Vec<FocusPair> = Vec::new();
-    for &i in order.iter().take(p.focus_lines) {
+    for i in focus_lines(model, lines, p.focus_lines) {
         for &k in lines {
             let (li, lk) = (&model.lines[i], &model.lines[k]);
             let angle = line_angle(&li.dir, &lk.dir);
@@ -434,6 +432,33 @@ fn focus_pairs_among(model: &MatcherModel, lines: &[usize], p: &MatchParams, tab
             if !out.iter().chain(tabled).any(|f| symmetric_images(model, f, &pair)) {
                 out.push(pair);
             }
+        }
+    }
+    out
+}
+
+/// The focus lines among `lines`: the longest, taken by turns from each direction the lines
+/// run in (longest direction first), so that a view's focus lines do not all run one way.
+/// Stereo recovers no edge near the rasters' direction; when the focus lines all ran along
+/// it (the L-bracket's 70 and 55 mm edges are parallel), the object could not be seeded at all.
+fn focus_lines(model: &MatcherModel, lines: &[usize], count: usize) -> Vec<usize> {
+    let mut order = lines.to_vec();
+    order.sort_by(|&a, &b| model.lines[b].len.total_cmp(&model.lines[a].len));
+    // Group the lines by direction, each group longest first; the groups in order of their longest.
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    for i in order {
+        let d = &model.lines[i].dir;
+        match groups.iter_mut().find(|g| line_angle(&model.lines[g[0]].dir, d) < 0.35) {
+            Some(g) => g.push(i),
+            None => groups.push(vec![i]),
+        }
+    }
+    let mut out = Vec::new();
+    for round in 0.. {
+        let before = out.len();
+        out.extend(groups.iter().filter_map(|g| g.get(round)).take(count - out.len()));
+        if out.len() == count || out.len() == before {
+            break;
         }
     }
     out
@@ -880,6 +905,26 @@ mod tests {
             assert!((cam_from_gripper.translation.vector - expect.translation.vector).norm() < 1e-3);
             assert_eq!(width, model.grasps[0].1);
         }
+    }
+
+    /// The L-bracket's four longest edges all run along its length; its focus lines must not,
+    /// or an L-bracket whose length lies along the rasters could not be seeded.
+    #[test]
+    fn focus_lines_run_in_every_direction_the_model_has() {
+        let lib = mesh::Library::load_default().unwrap();
+        let model = MatcherModel::from_model(lib.get("l_bracket").unwrap());
+        let all: Vec<usize> = (0..model.lines.len()).collect();
+        let focus = focus_lines(&model, &all, 4);
+        assert_eq!(focus.len(), 4);
+        for axis in [Vector3::x(), Vector3::y(), Vector3::z()] {
+            assert!(
+                focus.iter().any(|&i| line_angle(&model.lines[i].dir, &axis) < 0.1),
+                "no focus line along {axis:?}: {focus:?}"
+            );
+        }
+        // The longest line of each direction comes first: the 70 mm edge, then the 50 mm one.
+        assert_eq!(model.lines[focus[0]].len, model.lines.iter().map(|l| l.len).fold(0.0, f64::max));
+        assert!((model.lines[focus[1]].len - 0.05).abs() < 1e-9);
     }
 
     #[test]
