@@ -550,10 +550,14 @@ pub fn locate(
     };
     let mut free = vec![true; scene.len()];
     let mut found = Vec::new();
+    let mut seen = hypotheses(model, scene, &free, views, p);
     'instances: for _ in 0..p.max_instances {
+        if !found.is_empty() {
+            seen = rescored(model, scene, &free, &seen, p);
+        }
         // The best-supported hypotheses, each refined and checked against the image, are
         // verified in order of both kinds of evidence; the first that passes is the next instance.
-        let mut candidates: Vec<Candidate> = best_hypotheses(model, scene, &free, views, p)
+        let mut candidates: Vec<Candidate> = best_of(&seen)
             .into_iter()
             .map(|start| {
                 let (pose, score, pairs) = refine(model, scene, &free, start, p);
@@ -663,45 +667,63 @@ fn resolve(models: &[MatcherModel], mut reports: Vec<Located>, kept: &mut Vec<Lo
     }
 }
 
-/// The best-supported poses (up to `HYPOTHESES`, no two alike) among the hypotheses that
-/// congruent scene pairs give, best first.
-fn best_hypotheses(
+/// Every hypothesis that congruent scene pairs give and that finds at least the support a
+/// located object needs (`min_support_fraction` of the wireframe), with that support.
+fn hypotheses(
     model: &MatcherModel,
     scene: &[Seg],
     free: &[bool],
     views: &[Vec<FocusPair>],
     p: &MatchParams,
-) -> Vec<Isometry3<f64>> {
+) -> Vec<(f64, Isometry3<f64>)> {
     use rayon::prelude::*;
     let (pairs, free_lines) = (scene_pairs(scene, free, p), FreeLines::new(scene, free));
-    // One subordinate matcher per characteristic view, in parallel; the best of all stand.
-    let per_view: Vec<Vec<(f64, Isometry3<f64>)>> = views
+    // One subordinate matcher per characteristic view, in parallel.
+    views
         .par_iter()
-        .map(|focus| {
-            let mut best = Best(Vec::new());
-            for_each_hypothesis(model, scene, (&pairs, &free_lines), focus, p, &mut best);
-            best.0
+        .flat_map_iter(|focus| {
+            let mut seen = Seen { floor: p.min_support_fraction * model.total_length, all: Vec::new() };
+            for_each_hypothesis(model, scene, (&pairs, &free_lines), focus, p, &mut seen);
+            seen.all
         })
-        .collect();
+        .collect()
+}
+
+/// The hypotheses of an earlier search with their support among the lines still free, those
+/// that still find enough. A later search for another instance would find no others: its
+/// scene pairs are among the earlier ones, giving the same poses, and support only shrinks as
+/// lines are claimed. (Searching again took half the matcher's time.)
+fn rescored(
+    model: &MatcherModel,
+    scene: &[Seg],
+    free: &[bool],
+    earlier: &[(f64, Isometry3<f64>)],
+    p: &MatchParams,
+) -> Vec<(f64, Isometry3<f64>)> {
+    let free_lines = FreeLines::new(scene, free);
+    let floor = p.min_support_fraction * model.total_length;
+    let mut near = Vec::new();
+    earlier
+        .iter()
+        .filter_map(|(_, pose)| {
+            support_score(model, pose, scene, &free_lines, p, floor, &mut near).map(|score| (score, *pose))
+        })
+        .collect()
+}
+
+/// The best-supported poses (up to `HYPOTHESES`, no two alike), best first.
+fn best_of(hypotheses: &[(f64, Isometry3<f64>)]) -> Vec<Isometry3<f64>> {
     let mut best = Vec::new();
-    for (score, pose) in per_view.into_iter().flatten() {
+    for &(score, pose) in hypotheses {
         keep_best(&mut best, score, pose);
     }
     best.into_iter().map(|(_, pose)| pose).collect()
 }
 
-/// The best [`HYPOTHESES`] hypotheses of a search, no two alike.
-struct Best(Vec<(f64, Isometry3<f64>)>);
-
-impl Best {
-    /// Support a hypothesis must exceed to matter.
-    fn floor(&self) -> f64 {
-        if self.0.len() == HYPOTHESES { self.0.last().map_or(0.0, |(s, _)| *s) } else { 0.0 }
-    }
-
-    fn seen(&mut self, score: f64, pose: Isometry3<f64>) {
-        keep_best(&mut self.0, score, pose);
-    }
+/// The hypotheses of a search that find support above `floor`.
+struct Seen {
+    floor: f64,
+    all: Vec<(f64, Isometry3<f64>)>,
 }
 
 /// Two free scene lines that could seed a hypothesis, with their relations.
@@ -742,7 +764,7 @@ fn for_each_hypothesis(
     (pairs, free_lines): (&[ScenePair], &FreeLines),
     focus: &[FocusPair],
     p: &MatchParams,
-    sink: &mut Best,
+    sink: &mut Seen,
 ) {
     let mut near = Vec::new();
     for sp in pairs {
@@ -783,8 +805,8 @@ fn for_each_hypothesis(
                     let points = [on(sj.a, mi), on(sj.b, mi), on(sl.a, mk), on(sl.b, mk)];
                     let Some(t) = translation_from_points(&rotation, &points) else { continue };
                     let pose = Isometry3::from_parts(t.into(), rotation);
-                    if let Some(score) = support_score(model, &pose, scene, free_lines, p, sink.floor(), &mut near) {
-                        sink.seen(score, pose);
+                    if let Some(score) = support_score(model, &pose, scene, free_lines, p, sink.floor, &mut near) {
+                        sink.all.push((score, pose));
                     }
                 }
             }
