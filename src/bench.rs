@@ -16,8 +16,9 @@ pub enum BenchTarget {
     /// stereo pair (both Cannys, strings, rectification, PMF, 2D and 3D lines) in 8 slices and
     /// joined, on all cores; `slices` and `join` its two parts. `front_end_whole`: the same
     /// without slicing (`--slices 1`), with its stages `strings`, `rectify`, `pmf`, `geom2d`,
-    /// `geom3d`. `match`: the model matcher (every library model but the flag) on the front
-    /// end's 3D lines, verified against the left edgels. `vision_cycle`: stereo pair in, located
+    /// `geom3d`. `image_evidence`: laying out the left edgels for verification. `match`: the
+    /// model matcher (every library model but the flag) on the front end's 3D lines, verified
+    /// against the left edgels. `vision_cycle`: stereo pair in, located
     /// objects out (the sliced front end, then the matcher).
     Vision(BenchArgs),
     /// Simulation speed of the arm at work among 10 objects: the default world's clutter plus
@@ -199,6 +200,9 @@ pub fn run(target: BenchTarget) -> anyhow::Result<()> {
             let lines: Vec<vision::matcher::Seg> =
                 fe.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
             let evidence = vision::verify::ImageEvidence::of(&s.calib.left, &fe);
+            let image_evidence = median_ms(args.runs, || {
+                std::hint::black_box(vision::verify::ImageEvidence::of(&s.calib.left, &fe));
+            });
             let matching = median_ms(args.runs, || {
                 std::hint::black_box(vision::matcher::locate_all(&models, &lines, &mp, Some(&evidence)));
             });
@@ -209,6 +213,7 @@ pub fn run(target: BenchTarget) -> anyhow::Result<()> {
                 let evidence = vision::verify::ImageEvidence::of(&s.calib.left, &fe);
                 std::hint::black_box(vision::matcher::locate_all(&models, &lines, &mp, Some(&evidence)));
             });
+            results.push(("image_evidence", image_evidence));
             results.push(("match", matching));
             results.push(("vision_cycle", cycle));
             let what = format!(
