@@ -20,6 +20,7 @@
 pub mod canny;
 pub mod front_end;
 pub mod image;
+pub mod image_fit;
 pub mod lines2d;
 pub mod lines3d;
 pub mod matcher;

@@ -180,7 +180,7 @@ impl Default for MatchParams {
             separation_tolerance: 0.004,
             support_distance: 0.003,
             min_seed_length: 0.012,
-            focus_lines: 4,
+            focus_lines: 8,
             min_support_fraction: 0.15,
             min_support_lines: 3,
             max_instances: 3,
@@ -476,8 +476,10 @@ fn characteristic_views(model: &MatcherModel, p: &MatchParams) -> Vec<Vec<FocusP
             let lines: Vec<usize> = (0..model.lines.len())
                 .filter(|&i| model.faces[i].is_empty() || model.faces[i].iter().any(|n| n.dot(&towards) > VIEW_FACING))
                 .collect();
-            let pairs = focus_pairs_among(model, &lines, p, &tabled);
+            let mut pairs = focus_pairs_among(model, &lines, p, &tabled);
             tabled.extend_from_slice(&pairs);
+            // By separation, so that a scene pair finds the focus pairs it may match by bisection.
+            pairs.sort_by(|a, b| a.separation.total_cmp(&b.separation));
             views.push(pairs);
         }
     }
@@ -771,10 +773,10 @@ fn for_each_hypothesis(
         let (sj, sl) = (&scene[sp.j], &scene[sp.l]);
         let (tj, tl) = (sp.at_j, sp.at_l);
         {
-            for f in focus {
-                if (sp.angle - f.angle).abs() > p.angle_tolerance
-                    || (sp.separation - f.separation).abs() > p.separation_tolerance
-                {
+            let from = focus.partition_point(|f| f.separation < sp.separation - p.separation_tolerance);
+            let within = focus[from..].iter().take_while(|f| f.separation <= sp.separation + p.separation_tolerance);
+            for f in within {
+                if (sp.angle - f.angle).abs() > p.angle_tolerance {
                     continue;
                 }
                 let (mi, mk) = (&model.lines[f.focus], &model.lines[f.partner]);

@@ -9,6 +9,7 @@
 //! Such poses rest on little 3D evidence, so they must be borne out by the image: most of the
 //! camera-facing wireframe along edgels.
 
+use crate::image_fit::{SEARCH_PX, refine_in_image};
 use crate::matcher::{Located, MatchParams, MatcherModel, Seg, line_angle, support};
 use crate::verify::{ImageEvidence, ImageLine, image_support_at_least};
 use nalgebra::{Isometry3, Point2, Point3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3};
@@ -19,6 +20,8 @@ const CORNER_PX: f64 = 8.0;
 const BEYOND_PX: f64 = 40.0;
 /// A pose from a second look must run along edgels for this much of its camera-facing wireframe.
 const MIN_IMAGE_SUPPORT: f64 = 0.85;
+/// A pose from a second look is refined on the image if this much of it already runs along edgels.
+const MIN_IMAGE_SUPPORT_TO_REFINE: f64 = 0.6;
 /// Candidates verified per model.
 const CANDIDATES: usize = 8;
 
@@ -153,6 +156,15 @@ pub fn locate(
                     continue;
                 }
                 for pose in poses(ml, c, s, &u_out, l).into_iter().filter(|pose| runs_along(pose, c, l, ev)) {
+                    // The pose is only as good as one short 3D line's direction: refined on
+                    // the image (and that line) before the strict image check, if it is near
+                    // enough to start from.
+                    if image_support_at_least(model, &pose, ev, MIN_IMAGE_SUPPORT_TO_REFINE).is_none() {
+                        continue;
+                    }
+                    let Some(pose) = refine_in_image(model, &pose, scene, &[(c.line, j)], ev, SEARCH_PX) else {
+                        continue;
+                    };
                     if let Some(score) = image_support_at_least(model, &pose, ev, MIN_IMAGE_SUPPORT) {
                         keep(&mut best, score, pose);
                     }

@@ -65,12 +65,23 @@ const STEP_PX: f64 = 2.0;
 /// An edgel within this distance (pixels)...
 const NEAR_PX: f64 = 1.5;
 /// ...whose edge runs within this angle (radians) of the projected line counts as evidence.
-const ALONG_RAD: f64 = 0.35;
+pub(crate) const ALONG_RAD: f64 = 0.35;
 
 /// The fraction of the projected, camera-facing wireframe (by length in the image) that runs
 /// along edgels.
 pub fn image_support(model: &MatcherModel, pose: &Isometry3<f64>, ev: &ImageEvidence) -> f64 {
     image_support_at_least(model, pose, ev, 0.0).unwrap_or(0.0)
+}
+
+/// Whether a model line with faces of outward normals `faces` (model frame) has one turned
+/// towards a camera at the origin, with the model at `pose` (lines of no face always do).
+pub(crate) fn faces_camera(
+    pose: &Isometry3<f64>,
+    line: &crate::matcher::Seg,
+    faces: &[nalgebra::Vector3<f64>],
+) -> bool {
+    let mid = pose * (line.a + (line.b - line.a) * 0.5);
+    faces.is_empty() || faces.iter().any(|n| (pose.rotation * n).dot(&-mid.coords) > 0.0)
 }
 
 /// [`image_support`], given up (`None`) as soon as it cannot reach `min`: the samples are laid
@@ -84,8 +95,7 @@ pub fn image_support_at_least(
     let mut segments = Vec::new();
     let mut all = 0.0;
     for (line, faces) in model.lines.iter().zip(&model.faces) {
-        let mid = pose * (line.a + (line.b - line.a) * 0.5);
-        if !faces.is_empty() && !faces.iter().any(|n| (pose.rotation * n).dot(&-mid.coords) > 0.0) {
+        if !faces_camera(pose, line, faces) {
             continue;
         }
         let (Some(a), Some(b)) = (ev.cam.project_cam(&(pose * line.a)), ev.cam.project_cam(&(pose * line.b))) else {
