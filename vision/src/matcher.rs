@@ -784,14 +784,21 @@ fn for_each_hypothesis(
                 // model has it (with slack for the ends stereo loses); that fixes which way round
                 // each scene line runs, and the model pair's cosine sign must agree.
                 let slack = 4.0 * p.support_distance;
-                let same = mi.dir.dot(&mk.dir) >= 0.0;
-                for sign_j in [1.0, -1.0] {
+                let cos = mi.dir.dot(&mk.dir);
+                for (sign_j, sign_l) in [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
                     let tj_from_start = if sign_j > 0.0 { tj } else { sj.len - tj };
                     if !fits_along(tj_from_start, sj.len, f.at_focus, mi.len, slack) {
                         continue;
                     }
                     let vj = sj.dir * sign_j;
-                    let sign_l = if (vj.dot(&sl.dir) >= 0.0) == same { 1.0 } else { -1.0 };
+                    // The cosine's sign must agree, unless the lines are too near perpendicular
+                    // for it to say anything: then both ways round are tried (taking the noise's
+                    // word for it lost one of a rectangle's two readings, and with it many
+                    // objects, which came out turned over).
+                    let scene_cos = vj.dot(&sl.dir) * sign_l;
+                    if cos.abs() > PERPENDICULAR_COS && (scene_cos >= 0.0) != (cos >= 0.0) {
+                        continue;
+                    }
                     let tl_from_start = if sign_l > 0.0 { tl } else { sl.len - tl };
                     if !fits_along(tl_from_start, sl.len, f.at_partner, mk.len, slack) {
                         continue;
@@ -815,6 +822,10 @@ fn for_each_hypothesis(
         }
     }
 }
+
+/// Two lines whose directions' cosine is smaller than this are taken as perpendicular: the sign
+/// of a scene pair's cosine then says nothing (noise of the angle tolerance's size decides it).
+const PERPENDICULAR_COS: f64 = 0.1;
 
 /// Hypotheses kept for verification per search.
 const HYPOTHESES: usize = 12;
