@@ -783,7 +783,7 @@ fn for_each_hypothesis(
                 // Each fragment must fit along its model line with the closest approach where the
                 // model has it (with slack for the ends stereo loses); that fixes which way round
                 // each scene line runs, and the model pair's cosine sign must agree.
-                let slack = 4.0 * p.support_distance;
+                let slack = FIT_SLACK * p.support_distance;
                 let cos = mi.dir.dot(&mk.dir);
                 for (sign_j, sign_l) in [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
                     let tj_from_start = if sign_j > 0.0 { tj } else { sj.len - tj };
@@ -822,6 +822,11 @@ fn for_each_hypothesis(
         }
     }
 }
+
+/// A fragment's closest approach to its partner may fall this many support distances beyond
+/// where the model has it (stereo loses line ends near corners). 4 found the same objects as 3
+/// from 12% more hypotheses; 2 lost some.
+const FIT_SLACK: f64 = 3.0;
 
 /// Two lines whose directions' cosine is smaller than this are taken as perpendicular: the sign
 /// of a scene pair's cosine then says nothing (noise of the angle tolerance's size decides it).
