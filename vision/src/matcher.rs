@@ -684,7 +684,7 @@ fn hypotheses(
     views
         .par_iter()
         .flat_map_iter(|focus| {
-            let mut seen = Seen { floor: p.min_support_fraction * model.total_length, all: Vec::new() };
+            let mut seen = Seen::new(p.min_support_fraction * model.total_length);
             for_each_hypothesis(model, scene, (&pairs, &free_lines), focus, p, &mut seen);
             seen.all
         })
@@ -722,10 +722,58 @@ fn best_of(hypotheses: &[(f64, Isometry3<f64>)]) -> Vec<Isometry3<f64>> {
     best.into_iter().map(|(_, pose)| pose).collect()
 }
 
-/// The hypotheses of a search that find support above `floor`.
+/// The hypotheses of a search that find support above `floor` and, once [`RECORDED`] have,
+/// above the least of the best [`RECORDED`] so far (a hypothesis that cannot make those is
+/// neither this search's best nor, once lines are claimed, a later one's).
 struct Seen {
     floor: f64,
     all: Vec<(f64, Isometry3<f64>)>,
+    /// The best scores so far, least on top.
+    best: std::collections::BinaryHeap<std::cmp::Reverse<Score>>,
+}
+
+/// Hypotheses whose support sets the floor of a search. 60 found slightly more objects than
+/// keeping every hypothesis over the minimum support, with 5% less work; 30 found fewer.
+const RECORDED: usize = 60;
+
+/// A support score, ordered.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Score(f64);
+
+impl Eq for Score {}
+
+impl PartialOrd for Score {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl Ord for Score {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        self.0.total_cmp(&other.0)
+    }
+}
+
+impl Seen {
+    fn new(floor: f64) -> Seen {
+        Seen { floor, all: Vec::new(), best: std::collections::BinaryHeap::new() }
+    }
+
+    /// The support a hypothesis must exceed to be recorded.
+    fn floor(&self) -> f64 {
+        match self.best.peek() {
+            Some(std::cmp::Reverse(Score(least))) if self.best.len() == RECORDED => self.floor.max(*least),
+            _ => self.floor,
+        }
+    }
+
+    fn record(&mut self, score: f64, pose: Isometry3<f64>) {
+        self.all.push((score, pose));
+        self.best.push(std::cmp::Reverse(Score(score)));
+        if self.best.len() > RECORDED {
+            self.best.pop();
+        }
+    }
 }
 
 /// Two free scene lines that could seed a hypothesis, with their relations.
@@ -814,8 +862,8 @@ fn for_each_hypothesis(
                     let points = [on(sj.a, mi), on(sj.b, mi), on(sl.a, mk), on(sl.b, mk)];
                     let Some(t) = translation_from_points(&rotation, &points) else { continue };
                     let pose = Isometry3::from_parts(t.into(), rotation);
-                    if let Some(score) = support_score(model, &pose, scene, free_lines, p, sink.floor, &mut near) {
-                        sink.all.push((score, pose));
+                    if let Some(score) = support_score(model, &pose, scene, free_lines, p, sink.floor(), &mut near) {
+                        sink.record(score, pose);
                     }
                 }
             }
