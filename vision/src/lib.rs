@@ -11,11 +11,14 @@
 //! - [`front_end`]: the stages above run in order on one stereo pair.
 //! - [`slices`]: the same cut into 8 horizontal slice pairs run in parallel, and the Joiner.
 //! - [`pose_fit`]: least-squares pose from 3D line correspondences (quaternion method).
-//! - [`matcher`]: the model matcher for one model (pairwise relations, focus features,
-//!   hypotheses ranked by support, refinement, verification).
+//! - [`matcher`]: the model matcher (pairwise relations, focus features in characteristic
+//!   views, hypotheses ranked by support, refinement, verification), all models in parallel.
 //! - [`verify`]: verification of a located model against the edgels of the left image.
+//! - [`image_fit`]: pose refinement on the left image's edgels and the 3D lines together.
+//! - [`second_look`]: objects with too few 3D lines, from one 3D line and an image line
+//!   meeting it at a corner.
 //!
-//! Still to come: the runtime of communicating processes, and the model matcher.
+//! Still to come: the runtime of communicating processes.
 
 pub mod canny;
 pub mod front_end;
