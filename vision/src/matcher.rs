@@ -579,6 +579,13 @@ pub fn locate(
             {
                 continue;
             }
+            // The pose of the one that passes is refined on the image as well: 3D lines alone
+            // leave flat parts a few degrees off.
+            let c = match image {
+                Some(ev) => in_image(model, scene, &free, c, p, ev),
+                None => c,
+            };
+            let fraction = c.score / model.total_length;
             let mut used: Vec<usize> = c.pairs.iter().map(|&(_, j, _)| j).collect();
             used.sort_unstable();
             used.dedup();
@@ -599,6 +606,26 @@ pub fn locate(
         break;
     }
     found
+}
+
+/// The candidate refined on the image as well, if that ranks at least as well.
+fn in_image(
+    model: &MatcherModel,
+    scene: &[Seg],
+    free: &[bool],
+    c: Candidate,
+    p: &MatchParams,
+    ev: &crate::verify::ImageEvidence,
+) -> Candidate {
+    let lines: Vec<(usize, usize)> = c.pairs.iter().map(|&(i, j, _)| (i, j)).collect();
+    let Some(pose) = crate::image_fit::refine_in_image(model, &c.pose, scene, &lines, ev, crate::image_fit::SEARCH_PX)
+    else {
+        return c;
+    };
+    let (score, pairs) = support(model, &pose, scene, free, p);
+    let image_support = crate::verify::image_support(model, &pose, ev);
+    let refined = Candidate { pose, score, pairs, image_support };
+    if refined.rank() >= c.rank() { refined } else { c }
 }
 
 /// A refined hypothesis with its evidence.
