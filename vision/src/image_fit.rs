@@ -170,30 +170,7 @@ pub fn refine_in_image(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::canny::{EdgeMap, Edgel};
     use mesh::PinholeCamera;
-
-    /// Edgels along every camera-facing edge of `model` at `pose`, as Canny would find them.
-    fn edges_of(model: &MatcherModel, pose: &Isometry3<f64>, cam: &PinholeCamera) -> EdgeMap {
-        let mut edges = EdgeMap::new(512, 512);
-        for (line, faces) in model.lines.iter().zip(&model.faces) {
-            if !faces_camera(pose, line, faces) {
-                continue;
-            }
-            let (a, b) = (cam.project_cam(&(pose * line.a)).unwrap(), cam.project_cam(&(pose * line.b)).unwrap());
-            let d = (b - a).normalize();
-            let steps = (b - a).norm() as usize;
-            for s in 0..=steps {
-                let q = a + (b - a) * (s as f64 / steps.max(1) as f64);
-                let (x, y) = (q.x.round() as usize, q.y.round() as usize);
-                if x < 512 && y < 512 && edges.edgel_at(x, y).is_none() {
-                    let orientation = d.x.atan2(-d.y) as f32;
-                    edges.push(y * 512 + x, Edgel { x: q.x as f32, y: q.y as f32, orientation, contrast: 40.0 });
-                }
-            }
-        }
-        edges
-    }
 
     /// From 3 degrees and 3 mm off, the image and one true 3D line bring a widget back to
     /// within a fraction of a millimetre and degree of where its edgels are.
@@ -214,7 +191,7 @@ mod tests {
                 Translation3::new(0.01, 0.02, 0.02),
                 UnitQuaternion::from_euler_angles(0.0, 0.0, 0.7),
             );
-        let edges = edges_of(&model, &truth, &cam);
+        let (edges, _) = crate::verify::drawn::model_edges(&model, &truth, &cam);
         let ev = ImageEvidence::new(&cam, &edges, Vec::new());
         // One 3D line: the longest camera-facing edge, as stereo would give it.
         let k = (0..model.lines.len())

@@ -202,7 +202,6 @@ fn keep(best: &mut Vec<(f64, Isometry3<f64>)>, score: f64, pose: Isometry3<f64>)
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::canny::{EdgeMap, Edgel};
     use mesh::PinholeCamera;
 
     /// A block seen by a camera above it, with one 3D line (a fragment of a top edge) and, in the
@@ -229,24 +228,7 @@ mod tests {
             let mid = pose * (l.a + (l.b - l.a) * 0.5);
             model.faces[k].iter().any(|n| (pose.rotation * n).dot(&-mid.coords) > 0.0)
         };
-        let mut edges = EdgeMap::new(512, 512);
-        let mut lines = Vec::new();
-        for k in (0..model.lines.len()).filter(|&k| facing(k)) {
-            let l = model.lines[k].transformed(&pose);
-            let (a, b) = (cam.project_cam(&l.a).unwrap(), cam.project_cam(&l.b).unwrap());
-            let d = (b - a).normalize();
-            let steps = (b - a).norm() as usize;
-            for s in 0..=steps {
-                let q = a + (b - a) * (s as f64 / steps.max(1) as f64);
-                let (x, y) = (q.x.round() as usize, q.y.round() as usize);
-                if x < 512 && y < 512 && edges.edgel_at(x, y).is_none() {
-                    let orientation = (d.x).atan2(-d.y) as f32; // the gradient, across the edge
-                    edges.push(y * 512 + x, Edgel { x: q.x as f32, y: q.y as f32, orientation, contrast: 50.0 });
-                }
-            }
-            let normal = cam.ray_cam(a.x, a.y).cross(&cam.ray_cam(b.x, b.y)).normalize();
-            lines.push(ImageLine { a, b, normal });
-        }
+        let (edges, lines) = crate::verify::drawn::model_edges(&model, &pose, &cam);
         // The one 3D line: 80% of the longest camera-facing edge.
         let k = (0..model.lines.len())
             .filter(|&k| facing(k))

@@ -208,6 +208,41 @@ fn edgel_along(edges: &EdgeMap, x: f64, y: f64, dir: Vector2<f64>) -> bool {
     false
 }
 
+/// Test scenes: what Canny and the line finder would give for a model alone in view.
+#[cfg(test)]
+pub(crate) mod drawn {
+    use super::*;
+    use crate::canny::Edgel;
+
+    /// Edgels one pixel apart along every camera-facing edge of `model` at `pose` (a 512 x 512
+    /// image), and an image line along each such edge.
+    pub fn model_edges(model: &MatcherModel, pose: &Isometry3<f64>, cam: &PinholeCamera) -> (EdgeMap, Vec<ImageLine>) {
+        let mut edges = EdgeMap::new(512, 512);
+        let mut lines = Vec::new();
+        for (a, b) in model
+            .lines
+            .iter()
+            .zip(&model.faces)
+            .filter(|(line, faces)| faces_camera(pose, line, faces))
+            .filter_map(|(line, _)| Some((cam.project_cam(&(pose * line.a))?, cam.project_cam(&(pose * line.b))?)))
+        {
+            let d = (b - a).normalize();
+            let steps = (b - a).norm() as usize;
+            for s in 0..=steps {
+                let q = a + (b - a) * (s as f64 / steps.max(1) as f64);
+                let (x, y) = (q.x.round() as usize, q.y.round() as usize);
+                if x < 512 && y < 512 && edges.edgel_at(x, y).is_none() {
+                    let orientation = d.x.atan2(-d.y) as f32; // the gradient, across the edge
+                    edges.push(y * 512 + x, Edgel { x: q.x as f32, y: q.y as f32, orientation, contrast: 50.0 });
+                }
+            }
+            let normal = cam.ray_cam(a.x, a.y).cross(&cam.ray_cam(b.x, b.y)).normalize();
+            lines.push(ImageLine { a, b, normal });
+        }
+        (edges, lines)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
