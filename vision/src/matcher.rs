@@ -328,6 +328,10 @@ struct FreeLines {
     index: Vec<usize>,
     mid: Vec<Point3<f64>>,
     half: Vec<f64>,
+    /// The midpoints again, in single precision, coordinate by coordinate.
+    x: Vec<f32>,
+    y: Vec<f32>,
+    z: Vec<f32>,
 }
 
 impl FreeLines {
@@ -335,7 +339,13 @@ impl FreeLines {
         let index: Vec<usize> = (0..scene.len()).filter(|&j| free[j]).collect();
         let mid = index.iter().map(|&j| scene[j].a + (scene[j].b - scene[j].a) * 0.5).collect();
         let half = index.iter().map(|&j| 0.5 * scene[j].len).collect();
-        FreeLines { index, mid, half }
+        let mid: Vec<Point3<f64>> = mid;
+        let (x, y, z) = (
+            mid.iter().map(|m| m.x as f32).collect(),
+            mid.iter().map(|m| m.y as f32).collect(),
+            mid.iter().map(|m| m.z as f32).collect(),
+        );
+        FreeLines { index, mid, half, x, y, z }
     }
 }
 
@@ -355,15 +365,20 @@ struct NearLines {
 impl NearLines {
     /// The free lines (indices into `free`) with their midpoint within `reach` of `centre`.
     fn gather(&mut self, free: &FreeLines, centre: &Point3<f64>, reach: f64, support_distance: f64) {
+        let (cx, cy, cz, r2) = (centre.x as f32, centre.y as f32, centre.z as f32, (reach * reach) as f32);
+        self.close.clear();
+        self.close.extend(free.x.iter().zip(&free.y).zip(&free.z).map(|((x, y), z)| {
+            let (dx, dy, dz) = (x - cx, y - cy, z - cz);
+            dx * dx + dy * dy + dz * dz <= r2
+        }));
         self.index.clear();
-        self.index.extend((0..free.mid.len()).filter(|&k| (free.mid[k] - centre).norm_squared() <= reach * reach));
-        let mids = self.index.iter().map(|&k| free.mid[k]);
+        self.index.extend(self.close.iter().enumerate().filter(|(_, c)| **c).map(|(k, _)| k));
         self.x.clear();
-        self.x.extend(mids.clone().map(|m| m.x as f32));
+        self.x.extend(self.index.iter().map(|&k| free.x[k]));
         self.y.clear();
-        self.y.extend(mids.clone().map(|m| m.y as f32));
+        self.y.extend(self.index.iter().map(|&k| free.y[k]));
         self.z.clear();
-        self.z.extend(mids.map(|m| m.z as f32));
+        self.z.extend(self.index.iter().map(|&k| free.z[k]));
         self.reach.clear();
         self.reach.extend(self.index.iter().map(|&k| (free.half[k] + support_distance) as f32));
         self.close.resize(self.index.len(), false);
