@@ -52,29 +52,38 @@ fn motion_row(x: &Point3<f64>, g: &Vector3<f64>) -> Vector6<f64> {
 }
 
 /// Offset (pixels, along `normal`) from `u` to the nearest edgel within `search` that runs
-/// along `dir`.
+/// along `dir`. The search steps outwards from `u`, both ways by turns, and stops once no
+/// pixel further out could hold a nearer edgel.
 fn nearest_edgel_across(ev: &ImageEvidence, u: &Point2<f64>, dir: &Vector2<f64>, search: f64) -> Option<f64> {
     let normal = Vector2::new(-dir.y, dir.x);
     let cos_along = ALONG_RAD.cos();
     let mut best: Option<f64> = None;
-    let mut last = (i64::MIN, i64::MIN);
     let steps = (2.0 * search) as i64;
-    for k in -steps..=steps {
-        let q = u + normal * (k as f64 * 0.5);
-        let (px, py) = (q.x.round() as i64, q.y.round() as i64);
-        if (px, py) == last || px < 0 || py < 0 || px >= ev.edges.width as i64 || py >= ev.edges.height as i64 {
-            continue;
+    for k in 0..=steps {
+        let reach = k as f64 * 0.5;
+        // An edgel lies within 0.71 px of its pixel's centre.
+        if best.is_some_and(|b| b.abs() < reach - 0.75) {
+            break;
         }
-        last = (px, py);
-        let Some(i) = ev.edges.edgel_at(px as usize, py as usize) else { continue };
-        let e = &ev.edges.edgels[i as usize];
-        let (s, c) = (e.orientation as f64).sin_cos();
-        if Vector2::new(-s, c).dot(dir).abs() < cos_along {
-            continue;
-        }
-        let d = (Vector2::new(e.x as f64, e.y as f64) - u.coords).dot(&normal);
-        if d.abs() <= search && best.is_none_or(|b| d.abs() < b.abs()) {
-            best = Some(d);
+        for offset in if k == 0 { [0.0, f64::NAN] } else { [reach, -reach] } {
+            if offset.is_nan() {
+                continue;
+            }
+            let q = u + normal * offset;
+            let (px, py) = (q.x.round() as i64, q.y.round() as i64);
+            if px < 0 || py < 0 || px >= ev.edges.width as i64 || py >= ev.edges.height as i64 {
+                continue;
+            }
+            let Some(i) = ev.edges.edgel_at(px as usize, py as usize) else { continue };
+            let e = &ev.edges.edgels[i as usize];
+            let (s, c) = (e.orientation as f64).sin_cos();
+            if Vector2::new(-s, c).dot(dir).abs() < cos_along {
+                continue;
+            }
+            let d = (Vector2::new(e.x as f64, e.y as f64) - u.coords).dot(&normal);
+            if d.abs() <= search && best.is_none_or(|b| d.abs() < b.abs()) {
+                best = Some(d);
+            }
         }
     }
     best

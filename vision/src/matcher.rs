@@ -326,7 +326,6 @@ fn within(a: &Point3<f64>, b: &Point3<f64>, centre: &Point3<f64>, reach: f64) ->
 /// The free scene lines laid out for [`support_score`]: index, midpoint and half length.
 struct FreeLines {
     index: Vec<usize>,
-    mid: Vec<Point3<f64>>,
     half: Vec<f64>,
     /// The midpoints again, in single precision, coordinate by coordinate.
     x: Vec<f32>,
@@ -337,15 +336,14 @@ struct FreeLines {
 impl FreeLines {
     fn new(scene: &[Seg], free: &[bool]) -> FreeLines {
         let index: Vec<usize> = (0..scene.len()).filter(|&j| free[j]).collect();
-        let mid = index.iter().map(|&j| scene[j].a + (scene[j].b - scene[j].a) * 0.5).collect();
+        let mid: Vec<Point3<f64>> = index.iter().map(|&j| nalgebra::center(&scene[j].a, &scene[j].b)).collect();
         let half = index.iter().map(|&j| 0.5 * scene[j].len).collect();
-        let mid: Vec<Point3<f64>> = mid;
         let (x, y, z) = (
             mid.iter().map(|m| m.x as f32).collect(),
             mid.iter().map(|m| m.y as f32).collect(),
             mid.iter().map(|m| m.z as f32).collect(),
         );
-        FreeLines { index, mid, half, x, y, z }
+        FreeLines { index, half, x, y, z }
     }
 }
 
