@@ -66,11 +66,24 @@ pub fn run(
         }));
     }
     let sought_names: Vec<&str> = sought.iter().map(|m| m.name.as_str()).collect();
-    let missed: Vec<&str> = truths
+    // Each object missed, with what the matcher could have found at its true pose.
+    let mp = MatchParams::default();
+    let missed: Vec<serde_json::Value> = truths
         .iter()
         .enumerate()
         .filter(|(i, (m, _))| !taken[*i] && sought_names.contains(&m.as_str()))
-        .map(|(_, (m, _))| m.as_str())
+        .filter_map(|(i, (name, pose))| {
+            let model = sought.iter().find(|m| &m.name == name)?;
+            let (support, lines_seen) = vision::matcher::support_at(model, pose, &lines, &mp);
+            Some(serde_json::json!({
+                "model": name,
+                "object": i,
+                "visible_fraction": visible_fraction(&scn.library.models[name], pose, &calib.left, &p.left.depth),
+                "support_fraction_at_truth": support,
+                "supported_lines_at_truth": lines_seen,
+                "image_support_at_truth": vision::verify::image_support(model, pose, &evidence),
+            }))
+        })
         .collect();
     if json {
         crate::emit(&serde_json::json!({ "seed": seed, "located": rows, "missed": missed }).to_string())?;
@@ -96,19 +109,17 @@ pub fn run(
                 }
             ))?;
         }
-        crate::emit(&format!("missed: {}", if missed.is_empty() { "none".to_string() } else { missed.join(", ") }))?;
-        // Why each was missed: what the matcher could have found at the true pose.
-        let mp = MatchParams::default();
-        for (i, (name, pose)) in
-            truths.iter().enumerate().filter(|(i, (m, _))| !taken[*i] && sought_names.contains(&m.as_str()))
-        {
-            let Some(model) = sought.iter().find(|m| &m.name == name) else { continue };
-            let visible = visible_fraction(&scn.library.models[name], pose, &calib.left, &p.left.depth);
-            let (support, lines_seen) = vision::matcher::support_at(model, pose, &lines, &mp);
-            let image = vision::verify::image_support(model, pose, &evidence);
+        let names: Vec<&str> = missed.iter().filter_map(|m| m["model"].as_str()).collect();
+        crate::emit(&format!("missed: {}", if names.is_empty() { "none".to_string() } else { names.join(", ") }))?;
+        for m in &missed {
             crate::emit(&format!(
-                "  {name} (object {i}): {:.0}% of its edges visible; at its true pose 3D support {support:.2} on {lines_seen} lines, image {image:.2}",
-                visible * 100.0
+                "  {} (object {}): {:.0}% of its edges visible; at its true pose 3D support {:.2} on {} lines, image {:.2}",
+                m["model"].as_str().unwrap_or("?"),
+                m["object"],
+                m["visible_fraction"].as_f64().unwrap_or(0.0) * 100.0,
+                m["support_fraction_at_truth"].as_f64().unwrap_or(0.0),
+                m["supported_lines_at_truth"],
+                m["image_support_at_truth"].as_f64().unwrap_or(0.0),
             ))?;
         }
     }

@@ -102,3 +102,20 @@ fn locate_reports_poses_grasps_and_misses() {
     let bad = marvin(&["locate", "worlds/widgets.toml", "--models", "teapot"]);
     assert!(!bad.status.success() && String::from_utf8_lossy(&bad.stderr).contains("teapot"));
 }
+
+/// Seed 6 hides most of its L-bracket behind other parts; `locate` reports it missed, with the
+/// fraction of its edges in view and the evidence its true pose finds.
+#[test]
+fn locate_says_how_much_of_a_missed_object_was_visible() {
+    let out = marvin(&["locate", "worlds/widgets.toml", "--seed", "6", "--json"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let missed = doc["missed"].as_array().unwrap();
+    let bracket = missed.iter().find(|m| m["model"] == "l_bracket").unwrap_or_else(|| panic!("{doc}"));
+    let visible = bracket["visible_fraction"].as_f64().unwrap();
+    assert!((0.1..0.3).contains(&visible), "{visible}");
+    for key in ["support_fraction_at_truth", "image_support_at_truth"] {
+        assert!((0.0..=1.0).contains(&bracket[key].as_f64().unwrap()), "{key}: {bracket}");
+    }
+    assert!(bracket["supported_lines_at_truth"].is_u64());
+}
