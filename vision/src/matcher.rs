@@ -994,7 +994,8 @@ fn refine(
         if s + 1e-9 < score {
             break;
         }
-        let settled = (next.translation.vector - pose.translation.vector).norm() < 1e-6;
+        // The same correspondences give the same fit: once they stop changing, it has settled.
+        let settled = pr.len() == pairs.len() && pr.iter().zip(&pairs).all(|(a, b)| a.0 == b.0 && a.1 == b.1);
         (pose, score, pairs) = (next, s, pr);
         if settled {
             break;
