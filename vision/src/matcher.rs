@@ -657,7 +657,13 @@ pub fn locate(
     found
 }
 
-/// The candidate refined on the image as well, if that ranks at least as well.
+/// The image-refined pose stands if it keeps this share of the candidate's rank: it is the
+/// better estimate (50 scenes: 0.28 -> 0.19 mm and 0.74 -> 0.33 deg median, and one L-bracket
+/// 6 deg off came within 5) even where a 3D line or two no longer quite lies along it. 0.9
+/// added false reports on seeds 81-110; 1.0 kept the worse poses.
+const KEEP_REFINED_RANK: f64 = 0.95;
+
+/// The candidate refined on the image as well, if that keeps its rank (see [`KEEP_REFINED_RANK`]).
 fn in_image(
     model: &MatcherModel,
     scene: &[Seg],
@@ -674,7 +680,7 @@ fn in_image(
     let (score, pairs) = support(model, &pose, scene, free, p);
     let image_support = crate::verify::image_support(model, &pose, ev);
     let refined = Candidate { pose, score, pairs, image_support };
-    if refined.rank() >= c.rank() { refined } else { c }
+    if refined.rank() >= KEEP_REFINED_RANK * c.rank() { refined } else { c }
 }
 
 /// A refined hypothesis with its evidence.
