@@ -202,7 +202,10 @@ pub fn locate(
                 grasps: model.grasps.iter().map(|(g, w)| (pose * g, *w)).collect(),
             })
         })
-        .take(1)
+        // The best by 3D support times image support, as the first pass ranks: a part turned
+        // over can fit the image as well but rarely the 3D lines too.
+        .reduce(|a, b| if b.support * b.image_support > a.support * a.image_support { b } else { a })
+        .into_iter()
         .collect()
 }
 
