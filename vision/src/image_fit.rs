@@ -9,7 +9,7 @@
 //! lines supply.
 
 use crate::matcher::{MatcherModel, Seg};
-use crate::verify::{ALONG_RAD, ImageEvidence, faces_camera};
+use crate::verify::{ALONG_RAD, ImageEvidence};
 use nalgebra::{
     Isometry3, Matrix2x3, Matrix6, Point2, Point3, Translation3, UnitQuaternion, Vector2, Vector3, Vector6,
 };
@@ -92,8 +92,8 @@ fn nearest_edgel_across(ev: &ImageEvidence, u: &Point2<f64>, dir: &Vector2<f64>,
 /// The image rows: each camera-facing model edge's samples pulled onto their edgels.
 fn image_rows(model: &MatcherModel, pose: &Isometry3<f64>, ev: &ImageEvidence, search: f64, rows: &mut Rows) {
     let cam = ev.cam;
-    for (line, faces) in model.lines.iter().zip(&model.faces) {
-        if !faces_camera(pose, line, faces) {
+    for (k, line) in model.lines.iter().enumerate() {
+        if !model.faces_camera(k, pose) {
             continue;
         }
         let (a, b) = (pose * line.a, pose * line.b);
@@ -204,7 +204,7 @@ mod tests {
         let ev = ImageEvidence::new(&cam, &edges, Vec::new());
         // One 3D line: the longest camera-facing edge, as stereo would give it.
         let k = (0..model.lines.len())
-            .filter(|&k| faces_camera(&truth, &model.lines[k], &model.faces[k]))
+            .filter(|&k| model.faces_camera(k, &truth))
             .max_by(|&a, &b| model.lines[a].len.total_cmp(&model.lines[b].len))
             .unwrap();
         let scene = vec![model.lines[k].transformed(&truth)];

@@ -4,19 +4,21 @@
 //! - Featural parallelism: the model is split into six characteristic views (the lines on faces
 //!   turned towards a viewer looking along one of the model's axes); a subordinate matcher per
 //!   view searches the scene, all in parallel, and the virtual matcher ([`locate`]) keeps the
-//!   best of their hypotheses and looks again for further instances.
+//!   best of their hypotheses and looks again for further instances. (The views overlap so
+//!   much that, their shared pairs tabled once, most of the work falls to the first.)
 //! - Pairwise relations (the angle between two lines, their perpendicular separation and where
 //!   along each the closest approach falls, as in Grimson & Lozano-Perez's tables) are tabled
-//!   per view for the pairs that matter: each focus line (the view's longest, in the manner of
-//!   Bolles) with its feature group (the view's lines not parallel to it); pairs that the
-//!   model's symmetry makes equivalent are tabled once.
+//!   per view for the pairs that matter: each focus line (the view's longest in each direction
+//!   by turns, in the manner of Bolles) with its feature group (the view's lines not parallel
+//!   to it); pairs that the model's symmetry makes equivalent are tabled once.
 //! - Hypotheses: a scene pair congruent with a focus pair, within tolerances that let fragments
 //!   and partly seen lines qualify, gives a pose by least squares ([`crate::pose_fit`]).
 //! - Each hypothesis is ranked by the support its pose finds: the length of scene lines lying
 //!   along the transformed model lines. The best dozen are refined on their supporting sets and
 //!   verified in order of that support times the image evidence ([`crate::verify`]): enough of
-//!   the model seen, along enough lines, and along the left image's edgels; then the matcher
-//!   looks again, without the lines already explained, for further instances.
+//!   the model seen, along enough lines, and along the left image's edgels; the pose of the one
+//!   that passes is refined on the image too ([`crate::image_fit`]). Further instances come
+//!   from the same hypotheses rescored without the lines already explained.
 //!
 //! Scene lines come from stereo with no particular direction, so each is used both ways round.
 
@@ -131,18 +133,18 @@ impl MatcherModel {
         (pose * self.sphere.0, self.sphere.1 + p.support_distance)
     }
 
+    /// Whether line `k` has a face turned towards a camera at the origin, with the model at
+    /// `pose` (lines of no face always do): only such lines can be seen.
+    pub fn faces_camera(&self, k: usize, pose: &Isometry3<f64>) -> bool {
+        let (line, faces) = (&self.lines[k], &self.faces[k]);
+        let mid = pose * nalgebra::center(&line.a, &line.b);
+        faces.is_empty() || faces.iter().any(|n| (pose.rotation * n).dot(&-mid.coords) > 0.0)
+    }
+
     /// Wireframe length a camera at the origin could see with the model at `pose` (lines with a
     /// face towards the camera; other objects may still hide them).
     pub fn visible_length(&self, pose: &Isometry3<f64>) -> f64 {
-        self.lines
-            .iter()
-            .zip(&self.faces)
-            .filter(|(l, faces)| {
-                let mid = pose * (l.a + (l.b - l.a) * 0.5);
-                faces.is_empty() || faces.iter().any(|n| (pose.rotation * n).dot(&-mid.coords) > 0.0)
-            })
-            .map(|(l, _)| l.len)
-            .sum()
+        (0..self.lines.len()).filter(|&k| self.faces_camera(k, pose)).map(|k| self.lines[k].len).sum()
     }
 }
 
@@ -293,21 +295,17 @@ pub(crate) fn support(
     let mut pairs = Vec::new();
     // Compared as cosines: an arc cosine per candidate was a tenth of the matcher's time.
     let cos_tolerance = p.angle_tolerance.cos();
-    let near: Vec<(usize, &Seg)> = {
-        let (centre, reach) = model.reach_at(pose, p);
-        scene.iter().enumerate().filter(|(j, sl)| free[*j] && within(&sl.a, &sl.b, &centre, reach)).collect()
-    };
+    let free_lines = FreeLines::new(scene, free);
+    let mut near = NearLines::default();
+    let (centre, reach) = model.reach_at(pose, p);
+    near.gather(&free_lines, &centre, reach, p.support_distance);
     for (i, ml) in model.lines.iter().enumerate() {
         let t = ml.transformed(pose);
-        let mid = t.a + (t.b - t.a) * 0.5;
+        near.mark_close(&nalgebra::center(&t.a, &t.b), 0.5 * t.len);
         let mut along = 0.0;
-        for &(j, sl) in &near {
-            // Cheap rejection first: a supporting line lies within the model line's reach.
-            let reach = 0.5 * (t.len + sl.len) + p.support_distance;
-            if (sl.a + (sl.b - sl.a) * 0.5 - mid).norm_squared() > reach * reach {
-                continue;
-            }
-            let o = overlap(&t, sl, cos_tolerance, p);
+        for (&k, _) in near.index.iter().zip(&near.close).filter(|(_, close)| **close) {
+            let j = free_lines.index[k];
+            let o = overlap(&t, &scene[j], cos_tolerance, p);
             if o > 0.0 {
                 along += o;
                 pairs.push((i, j, o));
@@ -316,11 +314,6 @@ pub(crate) fn support(
         total += along.min(ml.len);
     }
     (total, pairs)
-}
-
-/// Whether the midpoint of `a`-`b` lies within `reach` of `centre`.
-fn within(a: &Point3<f64>, b: &Point3<f64>, centre: &Point3<f64>, reach: f64) -> bool {
-    (nalgebra::center(a, b) - centre).norm_squared() <= reach * reach
 }
 
 /// The free scene lines laid out for [`support_score`]: index, midpoint and half length.
@@ -751,8 +744,9 @@ fn resolve(models: &[MatcherModel], mut reports: Vec<Located>, kept: &mut Vec<Lo
     }
 }
 
-/// Every hypothesis that congruent scene pairs give and that finds at least the support a
-/// located object needs (`min_support_fraction` of the wireframe), with that support.
+/// The hypotheses that congruent scene pairs give and that find at least the support a located
+/// object needs (`min_support_fraction` of the wireframe) and make the search's best so far
+/// (see [`Seen`]), with that support.
 fn hypotheses(
     model: &MatcherModel,
     scene: &[Seg],
@@ -1123,13 +1117,9 @@ mod tests {
                 Translation3::new(-0.02, 0.04, 0.9),
                 UnitQuaternion::from_euler_angles(2.6, 0.3, -0.7),
             );
-            let camera_side = |k: usize| {
-                let mid = pose * (model.lines[k].a + (model.lines[k].b - model.lines[k].a) * 0.5);
-                model.faces[k].iter().any(|n| (pose.rotation * n).dot(&-mid.coords) > 0.0)
-            };
             let mut rng = Lcg(11);
             let scene: Vec<Seg> = (0..model.lines.len())
-                .filter(|&k| camera_side(k))
+                .filter(|&k| model.faces_camera(k, &pose))
                 .map(|k| {
                     let t = model.lines[k].transformed(&pose);
                     Seg::new(t.a + (t.b - t.a) * 0.05 + rng.noise(2e-4), t.a + (t.b - t.a) * 0.9 + rng.noise(2e-4))

@@ -239,15 +239,10 @@ mod tests {
             UnitQuaternion::from_euler_angles(0.0, 0.0, 0.5),
         );
         let pose = cam.cam_from_world() * world_from_model;
-        let facing = |k: usize| {
-            let l = &model.lines[k];
-            let mid = pose * (l.a + (l.b - l.a) * 0.5);
-            model.faces[k].iter().any(|n| (pose.rotation * n).dot(&-mid.coords) > 0.0)
-        };
         let (edges, lines) = crate::verify::drawn::model_edges(&model, &pose, &cam);
         // The one 3D line: 80% of the longest camera-facing edge.
         let k = (0..model.lines.len())
-            .filter(|&k| facing(k))
+            .filter(|&k| model.faces_camera(k, &pose))
             .max_by(|&a, &b| model.lines[a].len.total_cmp(&model.lines[b].len))
             .unwrap();
         let t = model.lines[k].transformed(&pose);

@@ -73,17 +73,6 @@ pub fn image_support(model: &MatcherModel, pose: &Isometry3<f64>, ev: &ImageEvid
     image_support_at_least(model, pose, ev, 0.0).unwrap_or(0.0)
 }
 
-/// Whether a model line with faces of outward normals `faces` (model frame) has one turned
-/// towards a camera at the origin, with the model at `pose` (lines of no face always do).
-pub(crate) fn faces_camera(
-    pose: &Isometry3<f64>,
-    line: &crate::matcher::Seg,
-    faces: &[nalgebra::Vector3<f64>],
-) -> bool {
-    let mid = pose * (line.a + (line.b - line.a) * 0.5);
-    faces.is_empty() || faces.iter().any(|n| (pose.rotation * n).dot(&-mid.coords) > 0.0)
-}
-
 /// [`image_support`], given up (`None`) as soon as it cannot reach `min`: the samples are laid
 /// out first, and the count stops when even all the samples left could not lift it to `min`.
 pub fn image_support_at_least(
@@ -94,8 +83,8 @@ pub fn image_support_at_least(
 ) -> Option<f64> {
     let mut segments = Vec::new();
     let mut all = 0.0;
-    for (line, faces) in model.lines.iter().zip(&model.faces) {
-        if !faces_camera(pose, line, faces) {
+    for (k, line) in model.lines.iter().enumerate() {
+        if !model.faces_camera(k, pose) {
             continue;
         }
         let (Some(a), Some(b)) = (ev.cam.project_cam(&(pose * line.a)), ev.cam.project_cam(&(pose * line.b))) else {
@@ -222,9 +211,9 @@ pub(crate) mod drawn {
         for (a, b) in model
             .lines
             .iter()
-            .zip(&model.faces)
-            .filter(|(line, faces)| faces_camera(pose, line, faces))
-            .filter_map(|(line, _)| Some((cam.project_cam(&(pose * line.a))?, cam.project_cam(&(pose * line.b))?)))
+            .enumerate()
+            .filter(|(k, _)| model.faces_camera(*k, pose))
+            .filter_map(|(_, line)| Some((cam.project_cam(&(pose * line.a))?, cam.project_cam(&(pose * line.b))?)))
         {
             let d = (b - a).normalize();
             let steps = (b - a).norm() as usize;
