@@ -23,7 +23,8 @@ const HUBER_PX: f64 = 1.5;
 /// Gauss-Newton steps at most.
 const ITERATIONS: usize = 8;
 
-/// One linearised residual: `row . delta = target`, weighted.
+/// The linearised residuals `row . delta = target` gathered as weighted normal equations
+/// (`normal delta = rhs`), and how many there were.
 struct Rows {
     normal: Matrix6<f64>,
     rhs: Vector6<f64>,
