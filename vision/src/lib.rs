@@ -13,6 +13,7 @@
 //! - [`pose_fit`]: least-squares pose from 3D line correspondences (quaternion method).
 //! - [`matcher`]: the model matcher (pairwise relations, focus features in characteristic
 //!   views, hypotheses ranked by support, refinement, verification), all models in parallel.
+//! - [`support`]: the support a pose finds among the scene lines, as the matcher counts it.
 //! - [`verify`]: verification of a located model against the edgels of the left image.
 //! - [`image_fit`]: pose refinement on the left image's edgels and the 3D lines together.
 //! - [`second_look`]: objects with too few 3D lines, from one 3D line and an image line
@@ -33,6 +34,7 @@ pub mod rectify;
 pub mod second_look;
 pub mod slices;
 pub mod strings;
+pub mod support;
 pub mod verify;
 
 pub use canny::{CannyParams, EdgeMap, Edgel, canny};

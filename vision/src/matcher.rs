@@ -25,6 +25,8 @@
 use crate::pose_fit::{
     DirectionPair, PointOnLine, pose_from_lines, rotation_from_two_directions, translation_from_points,
 };
+use crate::support::{FreeLines, NearLines, support, support_score};
+pub use crate::support::{correspondences_at, support_at};
 use nalgebra::{Isometry3, Point3, Vector3};
 use serde::{Deserialize, Serialize};
 
@@ -50,7 +52,7 @@ impl Seg {
 
     /// The segment moved by rotation matrix `r` and translation `t`: the hot loops' form (a
     /// matrix turns a point in half the operations a quaternion does, and the length stays).
-    fn moved(&self, r: &nalgebra::Matrix3<f64>, t: &Vector3<f64>) -> Seg {
+    pub(crate) fn moved(&self, r: &nalgebra::Matrix3<f64>, t: &Vector3<f64>) -> Seg {
         Seg {
             a: Point3::from(r * self.a.coords + t),
             b: Point3::from(r * self.b.coords + t),
@@ -72,12 +74,15 @@ pub struct MatcherModel {
     pub grasps: Vec<(Isometry3<f64>, f64)>,
     pub total_length: f64,
     /// Centre and radius of a sphere holding the wireframe.
-    sphere: (Point3<f64>, f64),
+    pub(crate) sphere: (Point3<f64>, f64),
     /// The lines' indices, longest first (the order support is counted in).
-    longest_first: Vec<usize>,
+    pub(crate) longest_first: Vec<usize>,
     /// The characteristic views' focus pairs, tabled on the first search (they depend only on
     /// the model and the number of focus lines, which are kept with them).
     views: std::sync::OnceLock<(usize, Vec<Vec<FocusPair>>)>,
+    /// The lines near each cell of a grid over the model, laid out on the first search for its
+    /// support distance (kept with it).
+    pub(crate) grid: std::sync::OnceLock<crate::support::LineGrid>,
 }
 
 impl MatcherModel {
@@ -98,6 +103,7 @@ impl MatcherModel {
             grasps: m.grasps.iter().map(|g| (g.model_from_gripper, g.opening)).collect(),
             lines,
             views: std::sync::OnceLock::new(),
+            grid: std::sync::OnceLock::new(),
         }
     }
 }
@@ -129,7 +135,7 @@ impl MatcherModel {
     /// Where a scene line must lie to support the model at `pose`: both its ends within
     /// `support_distance` of the wireframe, hence its midpoint within the returned distance of
     /// the returned centre.
-    fn reach_at(&self, pose: &Isometry3<f64>, p: &MatchParams) -> (Point3<f64>, f64) {
+    pub(crate) fn reach_at(&self, pose: &Isometry3<f64>, p: &MatchParams) -> (Point3<f64>, f64) {
         (pose * self.sphere.0, self.sphere.1 + p.support_distance)
     }
 
@@ -243,182 +249,6 @@ fn closest_params(p: &Point3<f64>, u: &Vector3<f64>, q: &Point3<f64>, v: &Vector
 /// approach falls at `m`: the fragment is some stretch of the model line.
 fn fits_along(t: f64, frag: f64, m: f64, len: f64, tol: f64) -> bool {
     frag <= len + tol && t >= m - (len - frag) - tol && t <= m + tol
-}
-
-/// How a transformed model line and a scene line agree: the length of the scene line lying along
-/// the model segment (0 when they are not close and parallel).
-fn overlap(model: &Seg, scene: &Seg, cos_tolerance: f64, p: &MatchParams) -> f64 {
-    if model.dir.dot(&scene.dir).abs() < cos_tolerance {
-        return 0.0;
-    }
-    let off = |x: &Point3<f64>| {
-        let w = x - model.a;
-        (w - model.dir * w.dot(&model.dir)).norm()
-    };
-    if off(&scene.a) > p.support_distance || off(&scene.b) > p.support_distance {
-        return 0.0;
-    }
-    let (ta, tb) = ((scene.a - model.a).dot(&model.dir), (scene.b - model.a).dot(&model.dir));
-    (ta.max(tb).min(model.len) - ta.min(tb).max(0.0)).max(0.0)
-}
-
-/// The support a given pose finds (matched scene length as a fraction of the wireframe, and
-/// the model lines seen), for diagnosis and evaluation.
-pub fn support_at(model: &MatcherModel, pose: &Isometry3<f64>, scene: &[Seg], p: &MatchParams) -> (f64, usize) {
-    let (score, pairs) = support(model, pose, scene, &vec![true; scene.len()], p);
-    let mut lines: Vec<usize> = pairs.iter().map(|&(i, ..)| i).collect();
-    lines.sort_unstable();
-    lines.dedup();
-    (score / model.total_length, lines.len())
-}
-
-/// The (model line, scene line, overlap length) correspondences a pose finds, for diagnosis.
-pub fn correspondences_at(
-    model: &MatcherModel,
-    pose: &Isometry3<f64>,
-    scene: &[Seg],
-    p: &MatchParams,
-) -> Vec<(usize, usize, f64)> {
-    support(model, pose, scene, &vec![true; scene.len()], p).1
-}
-
-/// Support of a pose: per model line, the scene length along it (capped at its length), summed;
-/// with the (model line, scene line, overlap) correspondences behind it.
-pub(crate) fn support(
-    model: &MatcherModel,
-    pose: &Isometry3<f64>,
-    scene: &[Seg],
-    free: &[bool],
-    p: &MatchParams,
-) -> (f64, Vec<(usize, usize, f64)>) {
-    let mut total = 0.0;
-    let mut pairs = Vec::new();
-    // Compared as cosines: an arc cosine per candidate was a tenth of the matcher's time.
-    let cos_tolerance = p.angle_tolerance.cos();
-    let free_lines = FreeLines::new(scene, free);
-    let mut near = NearLines::default();
-    let (centre, reach) = model.reach_at(pose, p);
-    near.gather(&free_lines, &centre, reach, p.support_distance);
-    for (i, ml) in model.lines.iter().enumerate() {
-        let t = ml.transformed(pose);
-        near.mark_close(&nalgebra::center(&t.a, &t.b), 0.5 * t.len);
-        let mut along = 0.0;
-        for (&k, _) in near.index.iter().zip(&near.close).filter(|(_, close)| **close) {
-            let j = free_lines.index[k];
-            let o = overlap(&t, &scene[j], cos_tolerance, p);
-            if o > 0.0 {
-                along += o;
-                pairs.push((i, j, o));
-            }
-        }
-        total += along.min(ml.len);
-    }
-    (total, pairs)
-}
-
-/// The free scene lines laid out for [`support_score`]: index, midpoint and half length.
-struct FreeLines {
-    index: Vec<usize>,
-    half: Vec<f64>,
-    /// The midpoints again, in single precision, coordinate by coordinate.
-    x: Vec<f32>,
-    y: Vec<f32>,
-    z: Vec<f32>,
-}
-
-impl FreeLines {
-    fn new(scene: &[Seg], free: &[bool]) -> FreeLines {
-        let index: Vec<usize> = (0..scene.len()).filter(|&j| free[j]).collect();
-        let mid: Vec<Point3<f64>> = index.iter().map(|&j| nalgebra::center(&scene[j].a, &scene[j].b)).collect();
-        let half = index.iter().map(|&j| 0.5 * scene[j].len).collect();
-        let (x, y, z) = (
-            mid.iter().map(|m| m.x as f32).collect(),
-            mid.iter().map(|m| m.y as f32).collect(),
-            mid.iter().map(|m| m.z as f32).collect(),
-        );
-        FreeLines { index, half, x, y, z }
-    }
-}
-
-/// The free lines near one hypothesis, their midpoints and reaches (half length plus the
-/// support distance) side by side in single precision: the first test of each against a model
-/// line then runs several lines at a time (9% of the matcher's time, same results).
-#[derive(Default)]
-struct NearLines {
-    index: Vec<usize>,
-    x: Vec<f32>,
-    y: Vec<f32>,
-    z: Vec<f32>,
-    reach: Vec<f32>,
-    close: Vec<bool>,
-}
-
-impl NearLines {
-    /// The free lines (indices into `free`) with their midpoint within `reach` of `centre`.
-    fn gather(&mut self, free: &FreeLines, centre: &Point3<f64>, reach: f64, support_distance: f64) {
-        let (cx, cy, cz, r2) = (centre.x as f32, centre.y as f32, centre.z as f32, (reach * reach) as f32);
-        self.close.clear();
-        self.close.extend(free.x.iter().zip(&free.y).zip(&free.z).map(|((x, y), z)| {
-            let (dx, dy, dz) = (x - cx, y - cy, z - cz);
-            dx * dx + dy * dy + dz * dz <= r2
-        }));
-        self.index.clear();
-        self.index.extend(self.close.iter().enumerate().filter(|(_, c)| **c).map(|(k, _)| k));
-        self.x.clear();
-        self.x.extend(self.index.iter().map(|&k| free.x[k]));
-        self.y.clear();
-        self.y.extend(self.index.iter().map(|&k| free.y[k]));
-        self.z.clear();
-        self.z.extend(self.index.iter().map(|&k| free.z[k]));
-        self.reach.clear();
-        self.reach.extend(self.index.iter().map(|&k| (free.half[k] + support_distance) as f32));
-        self.close.resize(self.index.len(), false);
-    }
-
-    /// Marks the lines whose midpoint lies within their reach plus `half` of `mid`: only they
-    /// can lie along a model line of half length `half` centred there.
-    fn mark_close(&mut self, mid: &Point3<f64>, half: f64) {
-        let (cx, cy, cz, half) = (mid.x as f32, mid.y as f32, mid.z as f32, half as f32);
-        for ((((close, x), y), z), r) in self.close.iter_mut().zip(&self.x).zip(&self.y).zip(&self.z).zip(&self.reach) {
-            let (dx, dy, dz, r) = (x - cx, y - cy, z - cz, r + half);
-            *close = dx * dx + dy * dy + dz * dz <= r * r;
-        }
-    }
-}
-
-/// The support of a pose alone, as [`support`] measures it, without the correspondences: the
-/// inner loop of hypothesis ranking, so the free lines come laid out once per search. Model
-/// lines are taken longest first, and the count stops (`None`) as soon as even full support of
-/// the lines left could not lift the score above `floor`.
-fn support_score(
-    model: &MatcherModel,
-    pose: &Isometry3<f64>,
-    scene: &[Seg],
-    free: &FreeLines,
-    p: &MatchParams,
-    floor: f64,
-    near: &mut NearLines,
-) -> Option<f64> {
-    let cos_tolerance = p.angle_tolerance.cos();
-    let (centre, reach) = model.reach_at(pose, p);
-    let rotation = pose.rotation.to_rotation_matrix().into_inner();
-    near.gather(free, &centre, reach, p.support_distance);
-    let (mut total, mut left) = (0.0, model.total_length);
-    for &i in &model.longest_first {
-        if total + left <= floor {
-            return None;
-        }
-        let ml = &model.lines[i];
-        left -= ml.len;
-        let t = ml.moved(&rotation, &pose.translation.vector);
-        near.mark_close(&nalgebra::center(&t.a, &t.b), 0.5 * t.len);
-        let mut along = 0.0;
-        for (&k, _) in near.index.iter().zip(&near.close).filter(|(_, close)| **close) {
-            along += overlap(&t, &scene[free.index[k]], cos_tolerance, p);
-        }
-        total += along.min(ml.len);
-    }
-    (total > floor).then_some(total)
 }
 
 /// The pose from correspondences, directions signed to agree with `pose`.
@@ -1005,7 +835,7 @@ fn refine(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use nalgebra::{Translation3, UnitQuaternion};
 
@@ -1015,13 +845,13 @@ mod tests {
     }
 
     /// A tiny deterministic generator, so the test needs no RNG crate.
-    struct Lcg(u64);
+    pub(crate) struct Lcg(pub u64);
     impl Lcg {
-        fn next(&mut self) -> f64 {
+        pub(crate) fn next(&mut self) -> f64 {
             self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
             (self.0 >> 11) as f64 / (1u64 << 53) as f64
         }
-        fn noise(&mut self, s: f64) -> Vector3<f64> {
+        pub(crate) fn noise(&mut self, s: f64) -> Vector3<f64> {
             Vector3::new(self.next() - 0.5, self.next() - 0.5, self.next() - 0.5) * 2.0 * s
         }
     }

@@ -11,7 +11,8 @@
 //! camera-facing wireframe along edgels (85%, or 70% where 3D lines lie along two of its edges).
 
 use crate::image_fit::{SEARCH_PX, refine_in_image};
-use crate::matcher::{Located, MatchParams, MatcherModel, Seg, line_angle, support};
+use crate::matcher::{Located, MatchParams, MatcherModel, Seg, line_angle};
+use crate::support::support;
 use crate::verify::{ImageEvidence, ImageLine, image_support_at_least};
 use nalgebra::{Isometry3, Point2, Point3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3};
 
