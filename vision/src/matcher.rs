@@ -413,6 +413,17 @@ pub fn locate(
     p: &MatchParams,
     image: Option<&crate::verify::ImageEvidence>,
 ) -> Vec<Located> {
+    locate_from(model, scene, &scene_pairs(scene, p), p, image)
+}
+
+/// [`locate`], with the scene's seed pairs given (every model's matcher searches the same).
+fn locate_from(
+    model: &MatcherModel,
+    scene: &[Seg],
+    pairs: &[ScenePair],
+    p: &MatchParams,
+    image: Option<&crate::verify::ImageEvidence>,
+) -> Vec<Located> {
     // Tabled once per model; a search with another number of focus lines tables its own.
     let tabled = model.views.get_or_init(|| (p.focus_lines, characteristic_views(model, p)));
     let own;
@@ -424,7 +435,7 @@ pub fn locate(
     };
     let mut free = vec![true; scene.len()];
     let mut found = Vec::new();
-    let mut seen = hypotheses(model, scene, &free, views, p);
+    let mut seen = hypotheses(model, scene, pairs, views, p);
     'instances: for _ in 0..p.max_instances {
         if !found.is_empty() {
             seen = rescored(model, scene, &free, &seen, p);
@@ -532,7 +543,8 @@ pub fn locate_all(
     image: Option<&crate::verify::ImageEvidence>,
 ) -> Vec<Located> {
     use rayon::prelude::*;
-    let all: Vec<Located> = models.par_iter().flat_map(|m| locate(m, scene, p, image)).collect();
+    let pairs = scene_pairs(scene, p);
+    let all: Vec<Located> = models.par_iter().flat_map(|m| locate_from(m, scene, &pairs, p, image)).collect();
     let mut kept = Vec::new();
     let mut claimed = vec![false; scene.len()];
     resolve(models, all, &mut kept, &mut claimed);
@@ -574,24 +586,24 @@ fn resolve(models: &[MatcherModel], mut reports: Vec<Located>, kept: &mut Vec<Lo
     }
 }
 
-/// The hypotheses that congruent scene pairs give and that find at least the support a located
-/// object needs (`min_support_fraction` of the wireframe) and make the search's best so far
-/// (see [`Seen`]), with that support.
+/// The hypotheses that congruent scene pairs (of `pairs`, all of free lines) give and that find
+/// at least the support a located object needs (`min_support_fraction` of the wireframe) and
+/// make the search's best so far (see [`Seen`]), with that support.
 fn hypotheses(
     model: &MatcherModel,
     scene: &[Seg],
-    free: &[bool],
+    pairs: &[ScenePair],
     views: &[Vec<FocusPair>],
     p: &MatchParams,
 ) -> Vec<(f64, Isometry3<f64>)> {
     use rayon::prelude::*;
-    let (pairs, free_lines) = (scene_pairs(scene, free, p), FreeLines::new(scene, free));
+    let free_lines = FreeLines::new(scene, &vec![true; scene.len()]);
     // One subordinate matcher per characteristic view, in parallel.
     views
         .par_iter()
         .flat_map_iter(|focus| {
             let mut seen = Seen::new(p.min_support_fraction * model.total_length);
-            for_each_hypothesis(model, scene, (&pairs, &free_lines), focus, p, &mut seen);
+            for_each_hypothesis(model, scene, (pairs, &free_lines), focus, p, &mut seen);
             seen.all
         })
         .collect()
@@ -693,9 +705,9 @@ struct ScenePair {
     at_l: f64,
 }
 
-/// Every ordered pair of free scene lines long enough to seed and far enough from parallel.
-fn scene_pairs(scene: &[Seg], free: &[bool], p: &MatchParams) -> Vec<ScenePair> {
-    let seeds: Vec<usize> = (0..scene.len()).filter(|&j| free[j] && scene[j].len >= p.min_seed_length).collect();
+/// Every ordered pair of scene lines long enough to seed and far enough from parallel.
+fn scene_pairs(scene: &[Seg], p: &MatchParams) -> Vec<ScenePair> {
+    let seeds: Vec<usize> = (0..scene.len()).filter(|&j| scene[j].len >= p.min_seed_length).collect();
     let mut out = Vec::new();
     for &j in &seeds {
         for &l in &seeds {
