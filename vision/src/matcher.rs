@@ -436,57 +436,55 @@ fn locate_from(
     let mut free = vec![true; scene.len()];
     let mut found = Vec::new();
     let mut seen = hypotheses(model, scene, pairs, views, p);
-    'instances: for _ in 0..p.max_instances {
+    for _ in 0..p.max_instances {
         if !found.is_empty() {
             seen = rescored(model, scene, &free, &seen, p);
         }
         // The best-supported hypotheses, each refined and checked against the image, are
         // verified in order of both kinds of evidence; the first that passes is the next instance.
-        let mut candidates: Vec<Candidate> = best_of(&seen)
+        // Those short of the 3D evidence or the image evidence needed are left out (their image
+        // support is not worked out, or not to the end: the check stops once it must fail).
+        let best = best_of(&seen)
             .into_iter()
-            .map(|start| {
+            .filter_map(|start| {
                 let (pose, score, pairs) = refine(model, scene, &free, start, p);
-                let image_support = image.map_or(1.0, |ev| crate::verify::image_support(model, &pose, ev));
-                Candidate { pose, score, pairs, image_support }
+                let mut lines_seen: Vec<usize> = pairs.iter().map(|&(i, ..)| i).collect();
+                lines_seen.sort_unstable();
+                lines_seen.dedup();
+                if score / model.total_length < p.min_support_fraction || lines_seen.len() < p.min_support_lines {
+                    return None;
+                }
+                let image_support = match image {
+                    Some(ev) => crate::verify::image_support_at_least(model, &pose, ev, p.min_image_support)
+                        .filter(|&s| s >= p.min_image_support)?,
+                    None => 1.0,
+                };
+                Some(Candidate { pose, score, pairs, image_support })
             })
-            .collect();
-        candidates.sort_by(|a, b| b.rank().total_cmp(&a.rank()));
-        for c in candidates {
-            let mut lines_seen: Vec<usize> = c.pairs.iter().map(|&(i, ..)| i).collect();
-            lines_seen.sort_unstable();
-            lines_seen.dedup();
-            let fraction = c.score / model.total_length;
-            if fraction < p.min_support_fraction
-                || lines_seen.len() < p.min_support_lines
-                || c.image_support < p.min_image_support
-            {
-                continue;
-            }
-            // The pose of the one that passes is refined on the image as well: 3D lines alone
-            // leave flat parts a few degrees off.
-            let c = match image {
-                Some(ev) => in_image(model, scene, &free, c, p, ev),
-                None => c,
-            };
-            let fraction = c.score / model.total_length;
-            let mut used: Vec<usize> = c.pairs.iter().map(|&(_, j, _)| j).collect();
-            used.sort_unstable();
-            used.dedup();
-            for &j in &used {
-                free[j] = false;
-            }
-            found.push(Located {
-                model: model.name.clone(),
-                cam_from_model: c.pose,
-                support: c.score,
-                support_fraction: fraction,
-                scene_lines: used,
-                image_support: c.image_support,
-                grasps: model.grasps.iter().map(|(g, w)| (c.pose * g, *w)).collect(),
-            });
-            continue 'instances;
+            // The first of the highest rank.
+            .min_by(|a, b| b.rank().total_cmp(&a.rank()));
+        let Some(c) = best else { break };
+        // The pose of the one that passes is refined on the image as well: 3D lines alone
+        // leave flat parts a few degrees off.
+        let c = match image {
+            Some(ev) => in_image(model, scene, &free, c, p, ev),
+            None => c,
+        };
+        let mut used: Vec<usize> = c.pairs.iter().map(|&(_, j, _)| j).collect();
+        used.sort_unstable();
+        used.dedup();
+        for &j in &used {
+            free[j] = false;
         }
-        break;
+        found.push(Located {
+            model: model.name.clone(),
+            cam_from_model: c.pose,
+            support: c.score,
+            support_fraction: c.score / model.total_length,
+            scene_lines: used,
+            image_support: c.image_support,
+            grasps: model.grasps.iter().map(|(g, w)| (c.pose * g, *w)).collect(),
+        });
     }
     found
 }
