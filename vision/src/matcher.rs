@@ -49,17 +49,6 @@ impl Seg {
     pub fn transformed(&self, pose: &Isometry3<f64>) -> Seg {
         Seg::new(pose * self.a, pose * self.b)
     }
-
-    /// The segment moved by rotation matrix `r` and translation `t`: the hot loops' form (a
-    /// matrix turns a point in half the operations a quaternion does, and the length stays).
-    pub(crate) fn moved(&self, r: &nalgebra::Matrix3<f64>, t: &Vector3<f64>) -> Seg {
-        Seg {
-            a: Point3::from(r * self.a.coords + t),
-            b: Point3::from(r * self.b.coords + t),
-            dir: r * self.dir,
-            len: self.len,
-        }
-    }
 }
 
 /// A model as the matcher sees it.

@@ -7,7 +7,7 @@
 use crate::matcher::{MatchParams, MatcherModel, Seg};
 use nalgebra::{Isometry3, Point3, Vector3};
 
-/// How a transformed model line and a scene line agree: the length of the scene line lying along
+/// How a model line and a scene line (in one frame) agree: the length of the scene line lying along
 /// the model segment (0 when they are not close and parallel).
 pub(crate) fn overlap(model: &Seg, scene: &Seg, cos_tolerance: f64, p: &MatchParams) -> f64 {
     if model.dir.dot(&scene.dir).abs() < cos_tolerance {
@@ -87,20 +87,22 @@ pub(crate) fn for_each_overlap(
     // Laid out on the first count; a count with another support distance takes every line.
     let grid = model.grid.get_or_init(|| LineGrid::new(model, p.support_distance));
     let grid_fits = grid.support_distance == p.support_distance;
-    // A matrix turns a point in half the operations a quaternion does.
-    let rotation = pose.rotation.to_rotation_matrix().into_inner();
+    // Scene lines are taken into the model's frame, where the grid and the model lines are. (A
+    // matrix turns a point in half the operations a quaternion does.)
+    let inverse = pose.rotation.to_rotation_matrix().into_inner().transpose();
     let translation = pose.translation.vector;
-    let (inverse, moved) = (rotation.transpose(), &mut near.moved);
-    moved.clear();
-    moved.resize(model.lines.len(), None);
     for &k in &near.index {
         let j = free.index[k];
         let sl = &scene[j];
-        let in_model = |x: &Point3<f64>| Point3::from(inverse * (x.coords - translation));
-        let ends = grid_fits.then(|| (in_model(&sl.a), in_model(&sl.b)));
+        let in_model = Seg {
+            a: Point3::from(inverse * (sl.a.coords - translation)),
+            b: Point3::from(inverse * (sl.b.coords - translation)),
+            dir: inverse * sl.dir,
+            len: sl.len,
+        };
+        let ends = grid_fits.then_some((in_model.a, in_model.b));
         for i in grid.lines_along(ends.as_ref()) {
-            let t = moved[i].get_or_insert_with(|| model.lines[i].moved(&rotation, &translation));
-            each(i, j, overlap(t, sl, cos_tolerance, p));
+            each(i, j, overlap(&model.lines[i], &in_model, cos_tolerance, p));
         }
     }
 }
@@ -129,12 +131,11 @@ impl FreeLines {
 }
 
 /// A support count's working space: the free lines near the pose, and per model line the
-/// scene length along it and where the pose puts it (once needed).
+/// scene length along it.
 #[derive(Default)]
 pub(crate) struct NearLines {
     index: Vec<usize>,
     along: Vec<f64>,
-    moved: Vec<Option<Seg>>,
 }
 
 impl NearLines {
