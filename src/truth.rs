@@ -21,19 +21,9 @@ impl TruthScene {
     /// Nearest hit of the ray `o + t d`: distance and triangle.
     pub fn cast(&self, o: &Point3<f64>, d: &Vector3<f64>) -> Option<(f64, usize)> {
         let mut best: Option<(f64, usize)> = None;
-        for (i, [a, b, c]) in self.triangles.iter().enumerate() {
-            let (e1, e2) = (b - a, c - a);
-            let p = d.cross(&e2);
-            let det = e1.dot(&p);
-            if det.abs() < 1e-15 {
-                continue;
-            }
-            let s = o - a;
-            let u = s.dot(&p) / det;
-            let q = s.cross(&e1);
-            let v = d.dot(&q) / det;
-            let t = e2.dot(&q) / det;
-            if u >= 0.0 && v >= 0.0 && u + v <= 1.0 && t > 0.0 && best.is_none_or(|(bt, _)| t < bt) {
+        for (i, triangle) in self.triangles.iter().enumerate() {
+            let Some(t) = mesh::trimesh::ray_triangle(o, d, triangle) else { continue };
+            if t > 0.0 && best.is_none_or(|(bt, _)| t < bt) {
                 best = Some((t, i));
             }
         }

@@ -77,22 +77,8 @@ mod tests {
 
     /// Distances along the ray `o + t d` at which it crosses the mesh (Moller-Trumbore).
     fn crossings(mesh: &crate::TriMesh, o: Point3<f64>, d: Vector3<f64>) -> Vec<f64> {
-        let mut ts: Vec<f64> = (0..mesh.triangles.len())
-            .filter_map(|t| {
-                let [a, b, c] = mesh.corners(t);
-                let (e1, e2) = (b - a, c - a);
-                let p = d.cross(&e2);
-                let det = e1.dot(&p);
-                if det.abs() < 1e-15 {
-                    return None;
-                }
-                let s = o - a;
-                let u = s.dot(&p) / det;
-                let q = s.cross(&e1);
-                let v = d.dot(&q) / det;
-                (u >= 0.0 && v >= 0.0 && u + v <= 1.0).then(|| e2.dot(&q) / det)
-            })
-            .collect();
+        let mut ts: Vec<f64> =
+            (0..mesh.triangles.len()).filter_map(|t| crate::trimesh::ray_triangle(&o, &d, &mesh.corners(t))).collect();
         ts.sort_by(f64::total_cmp);
         ts.dedup_by(|a, b| (*a - *b).abs() < 1e-9); // a ray through a shared edge hits twice
         ts

@@ -12,6 +12,22 @@ pub struct TriMesh {
     pub albedo: Vec<f32>,
 }
 
+/// Where the line `o + t d` crosses triangle `[a, b, c]`: the parameter `t` (of either sign),
+/// or `None` if it misses or runs parallel to it (Moller-Trumbore).
+pub fn ray_triangle(o: &Point3<f64>, d: &Vector3<f64>, [a, b, c]: &[Point3<f64>; 3]) -> Option<f64> {
+    let (e1, e2) = (b - a, c - a);
+    let p = d.cross(&e2);
+    let det = e1.dot(&p);
+    if det.abs() < 1e-15 {
+        return None;
+    }
+    let s = o - a;
+    let u = s.dot(&p) / det;
+    let q = s.cross(&e1);
+    let v = d.dot(&q) / det;
+    (u >= 0.0 && v >= 0.0 && u + v <= 1.0).then(|| e2.dot(&q) / det)
+}
+
 impl TriMesh {
     /// The three corners of triangle `t`.
     pub fn corners(&self, t: usize) -> [Point3<f64>; 3] {
