@@ -15,6 +15,7 @@
 //!   views, hypotheses ranked by support, refinement, verification), all models in parallel.
 //! - [`support`]: the support a pose finds among the scene lines, as the matcher counts it.
 //! - [`verify`]: verification of a located model against the edgels of the left image.
+//! - [`occlusion`]: located solids (and a model's own bulk) hiding parts of a wireframe.
 //! - [`image_fit`]: pose refinement on the left image's edgels and the 3D lines together.
 //! - [`second_look`]: objects with too few 3D lines, from one 3D line and an image line
 //!   meeting it at a corner.
@@ -28,6 +29,7 @@ pub mod image_fit;
 pub mod lines2d;
 pub mod lines3d;
 pub mod matcher;
+pub mod occlusion;
 pub mod pmf;
 pub mod pose_fit;
 pub mod rectify;

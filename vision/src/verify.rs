@@ -119,6 +119,44 @@ pub fn image_support_at_least(
     Some(seen / all)
 }
 
+/// [`image_support`] counted only over the part of the camera-facing wireframe that none of
+/// `solids` hides (hidden samples count neither way), with that part's share of the whole
+/// (both 0 when nothing faces the camera).
+pub fn image_support_unhidden(
+    model: &MatcherModel,
+    pose: &Isometry3<f64>,
+    ev: &ImageEvidence,
+    solids: &[&crate::occlusion::Solid],
+) -> (f64, f64) {
+    let (mut seen, mut unhidden, mut all) = (0.0, 0.0, 0.0);
+    for (k, line) in model.lines.iter().enumerate() {
+        if !model.faces_camera(k, pose) {
+            continue;
+        }
+        let (a3, b3) = (pose * line.a, pose * line.b);
+        let (Some(a), Some(b)) = (ev.cam.project_cam(&a3), ev.cam.project_cam(&b3)) else { continue };
+        let len = (b - a).norm();
+        if len < 2.0 * STEP_PX {
+            continue;
+        }
+        let steps = (len / STEP_PX) as usize;
+        let (dir, bins) = ((b - a) / len, EdgeMask::bins_along((b - a) / len));
+        for k in 1..steps {
+            let f = k as f64 / steps as f64;
+            all += STEP_PX;
+            if solids.iter().any(|s| s.hides(&(a3 + (b3 - a3) * f))) {
+                continue;
+            }
+            unhidden += STEP_PX;
+            let q = a + (b - a) * f;
+            if ev.mask.any_near(q.x, q.y, bins) && edgel_along(ev.edges, q.x, q.y, dir) {
+                seen += STEP_PX;
+            }
+        }
+    }
+    if unhidden <= 0.0 { (0.0, 0.0) } else { (seen / unhidden, unhidden / all) }
+}
+
 /// Per pixel, a bit for each orientation (of 32 across 180 deg) of the edgels that the exact
 /// test ([`edgel_along`]) would look at from there. Laid out once per image, it settles most
 /// samples with one look-up, since a sample off the model's true place mostly finds no edgel
@@ -236,6 +274,50 @@ pub(crate) mod drawn {
 mod tests {
     use super::*;
     use crate::canny::Edgel;
+
+    /// A block half behind another shows edgels only where it is in view: counted over its
+    /// whole camera-facing wireframe its image support falls well short, counted over the part
+    /// the other leaves in view it is whole.
+    #[test]
+    fn a_part_half_hidden_is_judged_on_what_is_in_view() {
+        use crate::occlusion::Solid;
+        use nalgebra::{Point3, Translation3, UnitQuaternion, Vector3};
+        let lib = mesh::Library::load_default().unwrap();
+        let model = MatcherModel::from_model(lib.get("block").unwrap());
+        let cam = PinholeCamera::looking_at(
+            (512, 512),
+            1000.0,
+            [255.5, 255.5],
+            Point3::new(0.0, -0.6, 0.6),
+            Point3::origin(),
+            Vector3::z(),
+        );
+        let place = |x: f64, y: f64, z: f64, yaw: f64| {
+            cam.cam_from_world()
+                * Isometry3::from_parts(Translation3::new(x, y, z), UnitQuaternion::from_euler_angles(0.0, 0.0, yaw))
+        };
+        let (pose, front) = (place(0.0, 0.0, 0.015, 0.4), place(-0.03, -0.07, 0.07, 0.0));
+        let occluder = Solid::new(&model, &front);
+        let (all_edges, _) = drawn::model_edges(&model, &pose, &cam);
+        // What the camera sees of the block behind: its edgels where the one in front does not
+        // hide the block's surface (taken at the block's own depth along each pixel's ray).
+        let depth = (pose * model.bounding_sphere().0).z;
+        let mut edges = EdgeMap::new(512, 512);
+        for (e, &pixel) in all_edges.edgels.iter().zip(&all_edges.pixel) {
+            let ray = cam.ray_cam(e.x as f64, e.y as f64);
+            if !occluder.hides(&Point3::from(ray * (depth / ray.z))) {
+                edges.push(pixel as usize, *e);
+            }
+        }
+        assert!(edges.edgels.len() * 10 < all_edges.edgels.len() * 8, "the block in front hides too little");
+        let ev = ImageEvidence::new(&cam, &edges, Vec::new());
+        let own = Solid::new(&model, &pose);
+        let plain = image_support(&model, &pose, &ev);
+        let (in_view, share) = image_support_unhidden(&model, &pose, &ev, &[&occluder, &own]);
+        assert!(plain < 0.8, "counted over the whole wireframe: {plain:.2}");
+        assert!(in_view > 0.9, "counted over the part in view: {in_view:.2}");
+        assert!(share > 0.2 && share < 0.8, "{share:.2} of the wireframe in view");
+    }
 
     /// The mask only spares work: wherever the exact search finds an edgel along a direction,
     /// the mask says there may be one (tried on random edgels, points and directions).

@@ -1,0 +1,76 @@
+//! Occlusion in the image check: where a solid already located in front (or the model's own
+//! bulk) hides part of a candidate's wireframe, that part can show no edgels, and counting it
+//! as unseen rejects objects that are partly hidden. Solids are the models' triangles at their
+//! located poses; a wireframe sample is hidden when the line of sight to it crosses one of them
+//! well in front of it.
+
+use crate::matcher::MatcherModel;
+use nalgebra::{Isometry3, Point3};
+
+/// A model's surface at a pose, in the `cam` frame, with a sphere holding it.
+pub struct Solid {
+    triangles: Vec<[Point3<f64>; 3]>,
+    centre: Point3<f64>,
+    radius: f64,
+}
+
+/// A sample counts as hidden if a surface crosses its line of sight this far (metres) in front
+/// of it: its own faces meet it at the edge itself.
+const IN_FRONT_M: f64 = 0.002;
+
+impl Solid {
+    pub fn new(model: &MatcherModel, pose: &Isometry3<f64>) -> Solid {
+        let (centre, radius) = model.bounding_sphere();
+        Solid {
+            triangles: model.triangles.iter().map(|t| t.map(|p| pose * p)).collect(),
+            centre: pose * centre,
+            radius,
+        }
+    }
+
+    /// Whether the solid hides point `x` (`cam` frame) from a camera at the origin.
+    pub fn hides(&self, x: &Point3<f64>) -> bool {
+        let eye = Point3::origin();
+        let (d, dist) = (x.coords, x.coords.norm());
+        // The line of sight must pass through the sphere, in front of the point.
+        let along = self.centre.coords.dot(&d) / dist;
+        if along - self.radius > dist - IN_FRONT_M || (d * (along / dist) - self.centre.coords).norm() > self.radius {
+            return false;
+        }
+        let limit = 1.0 - IN_FRONT_M / dist;
+        self.triangles.iter().filter_map(|t| mesh::trimesh::ray_triangle(&eye, &d, t)).any(|t| t > 0.0 && t < limit)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Translation3, UnitQuaternion, Vector3};
+
+    /// A block 0.8 m in front of the camera hides what lies straight behind it, not what lies in
+    /// front of it or beside it, nor its own edges facing the camera; the edges on its far side
+    /// it does hide.
+    #[test]
+    fn a_block_hides_what_lies_behind_it() {
+        let lib = mesh::Library::load_default().unwrap();
+        let model = MatcherModel::from_model(lib.get("block").unwrap());
+        let pose =
+            Isometry3::from_parts(Translation3::new(0.0, 0.0, 0.8), UnitQuaternion::from_euler_angles(0.3, 0.2, 0.1));
+        let solid = Solid::new(&model, &pose);
+        let centre = pose * model.bounding_sphere().0;
+        assert!(solid.hides(&(centre * 1.2)));
+        assert!(!solid.hides(&(centre * 0.8)));
+        assert!(!solid.hides(&(centre + Vector3::new(0.2, 0.0, 0.0))));
+        let (mut facing, mut hidden_far) = (0, 0);
+        for (k, l) in model.lines.iter().enumerate() {
+            let mid = pose * nalgebra::center(&l.a, &l.b);
+            if model.faces_camera(k, &pose) {
+                facing += 1;
+                assert!(!solid.hides(&mid), "camera-facing edge {k} hidden by its own block");
+            } else {
+                hidden_far += usize::from(solid.hides(&mid));
+            }
+        }
+        assert!(facing >= 5 && hidden_far >= 1, "{facing} edges face the camera, {hidden_far} far ones are hidden");
+    }
+}
