@@ -563,8 +563,15 @@ pub fn locate_all(
     let all = searches.iter_mut().flat_map(|s| std::mem::take(&mut s.found)).collect();
     resolve(models, all, &mut kept, &mut claimed);
     if let Some(ev) = image.filter(|ev| !ev.lines.is_empty()) {
+        let solids: Vec<crate::occlusion::Solid> = kept
+            .iter()
+            .filter_map(|l| {
+                let model = models.iter().find(|m| m.name == l.model)?;
+                Some(crate::occlusion::Solid::new(model, &l.cam_from_model))
+            })
+            .collect();
         let second: Vec<Located> =
-            models.par_iter().flat_map(|m| crate::second_look::locate(m, scene, &claimed, p, ev)).collect();
+            models.par_iter().flat_map(|m| crate::second_look::locate(m, scene, &claimed, p, ev, &solids)).collect();
         resolve(models, second, &mut kept, &mut claimed);
     }
     if let Some(ev) = image {
@@ -606,7 +613,7 @@ fn hidden_in_part(
             let own = crate::occlusion::Solid::new(model, &c.pose);
             let hiding: Vec<&crate::occlusion::Solid> = solids.iter().chain([&own]).collect();
             let (image_support, unhidden) = crate::verify::image_support_unhidden(model, &c.pose, ev, &hiding);
-            if image_support >= p.min_image_support && unhidden >= MIN_UNHIDDEN {
+            if image_support >= p.min_image_support && unhidden >= crate::occlusion::MIN_IN_VIEW {
                 loc.image_support = image_support;
                 out.push(loc);
                 break;
@@ -615,10 +622,6 @@ fn hidden_in_part(
     }
     out
 }
-
-/// A candidate checked on its unhidden part must have at least this share of its
-/// camera-facing wireframe in view.
-const MIN_UNHIDDEN: f64 = 0.3;
 
 /// Adds `reports` to `kept`, best first, unless one reuses over 30% of lines already claimed or
 /// sits inside a kept object; claims the lines of those it keeps.

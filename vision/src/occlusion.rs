@@ -14,6 +14,10 @@ pub struct Solid {
     radius: f64,
 }
 
+/// An object judged on the part of its wireframe in view must have at least this share of its
+/// camera-facing wireframe in view.
+pub const MIN_IN_VIEW: f64 = 0.3;
+
 /// A sample counts as hidden if a surface crosses its line of sight this far (metres) in front
 /// of it: its own faces meet it at the edge itself.
 const IN_FRONT_M: f64 = 0.002;
