@@ -16,7 +16,8 @@ pub enum BenchTarget {
     /// stereo pair (both Cannys, strings, rectification, PMF, 2D and 3D lines) in 8 slices and
     /// joined, on all cores; `slices` and `join` its two parts. `front_end_whole`: the same
     /// without slicing (`--slices 1`), with its stages `strings`, `rectify`, `pmf`, `geom2d`,
-    /// `geom3d`. `image_evidence`: laying out the left edgels for verification. `match`: the
+    /// `geom3d`; `sliced_canny` ... `sliced_geom3d` are the sliced run's stages, processor
+    /// time summed over the 8 slices (halos included). `image_evidence`: laying out the left edgels for verification. `match`: the
     /// model matcher (every library model but the flag) on the front end's 3D lines, verified
     /// against the left edgels. `vision_cycle`: stereo pair in, located
     /// objects out (the sliced front end, then the matcher).
@@ -94,6 +95,24 @@ fn report(args: &BenchArgs, results: &[(&str, f64)], what: &str) -> anyhow::Resu
 }
 
 /// The scenario with three more objects in its clutter (10 in the default world).
+/// Each front-end stage's times over repeated runs.
+#[derive(Default)]
+struct StageTimes(std::collections::BTreeMap<&'static str, Vec<f64>>);
+
+impl StageTimes {
+    fn add(&mut self, timings_ms: &[(&'static str, f64)]) {
+        for (name, ms) in timings_ms {
+            self.0.entry(name).or_default().push(*ms);
+        }
+    }
+
+    fn median(&mut self, name: &str) -> f64 {
+        let v = self.0.get_mut(name).expect("every run times every stage");
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    }
+}
+
 fn ten_objects(mut scn: Scenario) -> Scenario {
     if let Some(clutter) = &mut scn.world.clutter {
         for model in ["block", "l_bracket", "t_piece"] {
@@ -170,24 +189,29 @@ pub fn run(target: BenchTarget) -> anyhow::Result<()> {
                 ws.run(&left, &params, &mut edges);
                 std::hint::black_box(&edges);
             });
-            let mut stages: std::collections::BTreeMap<&'static str, Vec<f64>> = Default::default();
+            let mut whole_stages = StageTimes::default();
             let whole = median_ms(args.runs, || {
-                let fe = marvin::front_end::run(&left, &right, &s.calib, &params);
-                for (name, ms) in &fe.timings_ms {
-                    stages.entry(name).or_default().push(*ms);
-                }
+                whole_stages.add(&marvin::front_end::run(&left, &right, &s.calib, &params).timings_ms);
             });
+            let mut sliced_stages = StageTimes::default();
             let sliced = median_ms(args.runs, || {
-                let fe = vision::slices::run_sliced(&left, &right, &s.calib, &params, 8);
-                for (name, ms) in &fe.timings_ms {
-                    stages.entry(name).or_default().push(*ms);
-                }
+                sliced_stages.add(&vision::slices::run_sliced(&left, &right, &s.calib, &params, 8).timings_ms);
             });
             let mut results = vec![("canny", canny)];
-            for name in ["strings", "rectify", "pmf", "geom2d", "geom3d", "slices", "join"] {
-                let v = stages.get_mut(name).expect("every run times every stage");
-                v.sort_by(f64::total_cmp);
-                results.push((name, v[v.len() / 2]));
+            for name in ["strings", "rectify", "pmf", "geom2d", "geom3d"] {
+                results.push((name, whole_stages.median(name)));
+            }
+            for (name, key) in [
+                ("canny", "sliced_canny"),
+                ("strings", "sliced_strings"),
+                ("rectify", "sliced_rectify"),
+                ("pmf", "sliced_pmf"),
+                ("geom2d", "sliced_geom2d"),
+                ("geom3d", "sliced_geom3d"),
+                ("slices", "slices"),
+                ("join", "join"),
+            ] {
+                results.push((key, sliced_stages.median(name)));
             }
             results.push(("front_end", sliced));
             results.push(("front_end_whole", whole));

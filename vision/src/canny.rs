@@ -67,17 +67,23 @@ impl EdgeMap {
         map
     }
 
-    /// The edgels found on rows `rows` only (the same image size and pixel numbering).
-    pub fn retain_rows(&self, rows: &std::ops::Range<usize>) -> EdgeMap {
-        let mut out = EdgeMap::default();
-        out.reset(self.width, self.height);
-        for (i, e) in self.edgels.iter().enumerate() {
+    /// Drops the edgels found outside rows `rows`, in place (the same image size and pixel
+    /// numbering).
+    pub fn keep_rows(&mut self, rows: &std::ops::Range<usize>) {
+        let mut kept = 0;
+        for i in 0..self.edgels.len() {
             let p = self.pixel[i] as usize;
             if rows.contains(&(p / self.width)) {
-                out.push(p, *e);
+                self.edgels[kept] = self.edgels[i];
+                self.pixel[kept] = p as u32;
+                self.at_pixel[p] = kept as u32;
+                kept += 1;
+            } else {
+                self.at_pixel[p] = NO_EDGEL;
             }
         }
-        out
+        self.edgels.truncate(kept);
+        self.pixel.truncate(kept);
     }
 
     /// Empties the map for a `width` x `height` image, keeping its allocations.
@@ -175,8 +181,16 @@ impl CannyWorkspace {
 
     /// Gradient magnitudes by central differences (zero on the border).
     fn gradients(&mut self, w: usize, h: usize) {
-        if self.mag.len() != w * h {
-            reset(&mut self.mag, w * h); // the border is never written, so stays zero
+        // Every pixel is written, the border with zeros, so a buffer left from an image of
+        // another size needs no clearing first (slices differ in height).
+        fit(&mut self.mag, w * h);
+        if h > 0 {
+            self.mag[..w].fill(0.0);
+            self.mag[(h - 1) * w..].fill(0.0);
+        }
+        for y in 1..h.saturating_sub(1) {
+            self.mag[y * w] = 0.0;
+            self.mag[(y + 1) * w - 1] = 0.0;
         }
         let s = &self.smoothed;
         for y in 1..h.saturating_sub(1) {
@@ -275,12 +289,6 @@ impl CannyWorkspace {
 
 /// Gives `v` length `n` without clearing what it holds (every element is overwritten).
 fn fit(v: &mut Vec<f32>, n: usize) {
-    v.resize(n, 0.0);
-}
-
-/// Empties `v` and refills it with `n` zeros, keeping its allocation.
-fn reset(v: &mut Vec<f32>, n: usize) {
-    v.clear();
     v.resize(n, 0.0);
 }
 

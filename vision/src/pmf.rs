@@ -116,37 +116,62 @@ pub fn pmf(left: &[Edgel], right: &[Edgel], left_strings: &[EdgeString], p: &Pmf
     let (offsets, mut cands) = candidates(left, right, p);
     let has_candidates: Vec<bool> = (0..left.len()).map(|l| offsets[l + 1] > offsets[l]).collect();
     let neighbours = neighbourhoods(left, &has_candidates, p.support_radius, p.disparity_gradient_limit);
+    let owner: Vec<u32> =
+        (0..left.len()).flat_map(|l| std::iter::repeat_n(l as u32, offsets[l + 1] - offsets[l])).collect();
     let mut matches = winner_takes_all(left, right, &offsets, &mut cands, |cands: &mut [Candidate], done: &[bool]| {
-        support(left, &offsets, cands, &neighbours, done)
+        support(&offsets, &owner, cands, &neighbours, done)
     });
     enforce_ordering(&mut matches);
     figural_continuity(&mut matches, left.len(), left_strings, p.continuity_step);
     matches
 }
 
+/// What candidate selection asks of an edgel, worked out once per edgel rather than once per
+/// pair (the trigonometry was most of the candidates' time).
+#[derive(Debug, Clone, Copy)]
+struct Shape {
+    /// `dx/dy` along the edge.
+    slope: f32,
+    /// Runs too nearly along the raster to be matched.
+    flat: bool,
+    /// Brighter to the right: the sign of the gradient's x component.
+    bright_right: bool,
+}
+
+fn shapes(edgels: &[Edgel], p: &PmfParams) -> Vec<Shape> {
+    let steepest_flat = 1.0 / p.min_angle_to_raster.tan();
+    edgels
+        .iter()
+        .map(|e| {
+            let slope = slope(e.orientation);
+            Shape { slope, flat: slope.abs() > steepest_flat, bright_right: e.orientation.cos() > 0.0 }
+        })
+        .collect()
+}
+
 fn candidates(left: &[Edgel], right: &[Edgel], p: &PmfParams) -> (Vec<usize>, Vec<Candidate>) {
     let rasters = Rasters::new(right);
+    let (left_shape, right_shape) = (shapes(left, p), shapes(right, p));
     let mut offsets = Vec::with_capacity(left.len() + 1);
     let mut out = Vec::new();
-    let flat = |e: &Edgel| slope(e.orientation).abs() > 1.0 / p.min_angle_to_raster.tan();
-    for l in left {
+    for (l, ls) in left.iter().zip(&left_shape) {
         offsets.push(out.len());
-        if flat(l) {
+        if ls.flat {
             continue;
         }
         let row = l.y.round() as i32;
         for &ri in rasters.row(row - 1).iter().chain(rasters.row(row)).chain(rasters.row(row + 1)) {
-            let r = &right[ri as usize];
-            if (r.y - l.y).abs() > 0.5 || flat(r) {
+            let (r, rs) = (&right[ri as usize], &right_shape[ri as usize]);
+            if (r.y - l.y).abs() > 0.5 || rs.flat {
                 continue;
             }
             // Where the right edge crosses the left edgel's raster.
-            let disparity = l.x - (r.x + (l.y - r.y) * slope(r.orientation));
+            let disparity = l.x - (r.x + (l.y - r.y) * rs.slope);
             if disparity < p.disparity_min || disparity > p.disparity_max {
                 continue;
             }
-            // Contrast sign across the raster is the sign of the gradient's x component.
-            if (l.orientation.cos() > 0.0) != (r.orientation.cos() > 0.0) {
+            // Contrast sign across the raster.
+            if ls.bright_right != rs.bright_right {
                 continue;
             }
             let ratio = r.contrast / l.contrast;
@@ -154,7 +179,7 @@ fn candidates(left: &[Edgel], right: &[Edgel], p: &PmfParams) -> (Vec<usize>, Ve
                 continue;
             }
             let turn = angle_diff(l.orientation, r.orientation);
-            let along_edge_gradient = (slope(l.orientation) - slope(r.orientation)).abs();
+            let along_edge_gradient = (ls.slope - rs.slope).abs();
             let compatible = turn < p.orientation_accept
                 || (turn <= p.orientation_reject && along_edge_gradient <= p.orientation_gradient_limit);
             if compatible {
@@ -166,7 +191,6 @@ fn candidates(left: &[Edgel], right: &[Edgel], p: &PmfParams) -> (Vec<usize>, Ve
     (offsets, out)
 }
 
-/// For each left edgel, the other left edgels within `radius` and their distances.
 /// A neighbour of a left edgel, as its candidates' support needs it.
 #[derive(Debug, Clone, Copy)]
 struct Neighbour {
@@ -180,8 +204,22 @@ struct Neighbour {
     hi: f32,
 }
 
+/// Every left edgel's neighbours, one list after another (one allocation, not one per edgel:
+/// growing thousands of small lists was a third of finding them).
+struct Neighbourhoods {
+    /// Edgel `l`'s neighbours are `all[start[l]..start[l + 1]]`.
+    start: Vec<u32>,
+    all: Vec<Neighbour>,
+}
+
+impl Neighbourhoods {
+    fn of(&self, l: usize) -> &[Neighbour] {
+        &self.all[self.start[l] as usize..self.start[l + 1] as usize]
+    }
+}
+
 /// For each left edgel with candidates, the other such edgels within `radius`.
-fn neighbourhoods(left: &[Edgel], has_candidates: &[bool], radius: f32, limit: f32) -> Vec<Vec<Neighbour>> {
+fn neighbourhoods(left: &[Edgel], has_candidates: &[bool], radius: f32, limit: f32) -> Neighbourhoods {
     let cell = radius.max(1.0);
     let key = |e: &Edgel| ((e.x / cell).floor() as i32, (e.y / cell).floor() as i32);
     // A dense grid of cells a radius wide over the edgels' extent (hashing the cells was a
@@ -205,73 +243,73 @@ fn neighbourhoods(left: &[Edgel], has_candidates: &[bool], radius: f32, limit: f
     }
     let k2 = limit * limit;
     let a = 1.0 - k2 / 4.0;
-    left.iter()
-        .enumerate()
-        .map(|(i, e)| {
-            let mut near = Vec::new();
-            if !has_candidates[i] {
-                return near;
-            }
-            let (cx, cy) = key(e);
-            for gy in cy - 1..=cy + 1 {
-                for gx in cx - 1..=cx + 1 {
-                    for &j in cell_of(gx, gy).map_or(&[][..], |c| cells[c].as_slice()) {
-                        let o = &left[j as usize];
-                        let (dx, dy) = (o.x - e.x, o.y - e.y);
-                        let dist = (dx * dx + dy * dy).sqrt();
-                        if j as usize == i || dist > radius {
-                            continue;
-                        }
-                        // a D^2 + b D + c <= 0, a = 1 - k^2/4, b = k^2 dx, c = -k^2 (dx^2 + dy^2).
-                        let (b, c) = (k2 * dx, -k2 * dist * dist);
-                        let root = (b * b - 4.0 * a * c).sqrt();
-                        near.push(Neighbour {
-                            edgel: j,
-                            weight: 1.0 / dist,
-                            lo: (-b - root) / (2.0 * a),
-                            hi: (-b + root) / (2.0 * a),
-                        });
+    // Squared distances a little beyond the radius are let through to the exact test below.
+    let reach2 = radius * radius * 1.001;
+    let mut out = Neighbourhoods { start: Vec::with_capacity(left.len() + 1), all: Vec::new() };
+    for (i, e) in left.iter().enumerate() {
+        out.start.push(out.all.len() as u32);
+        if !has_candidates[i] {
+            continue;
+        }
+        let (cx, cy) = key(e);
+        for gy in cy - 1..=cy + 1 {
+            for gx in cx - 1..=cx + 1 {
+                for &j in cell_of(gx, gy).map_or(&[][..], |c| cells[c].as_slice()) {
+                    let o = &left[j as usize];
+                    let (dx, dy) = (o.x - e.x, o.y - e.y);
+                    let dist2 = dx * dx + dy * dy;
+                    if j as usize == i || dist2 > reach2 {
+                        continue;
                     }
+                    let dist = dist2.sqrt();
+                    if dist > radius {
+                        continue;
+                    }
+                    // a D^2 + b D + c <= 0, a = 1 - k^2/4, b = k^2 dx, c = -k^2 (dx^2 + dy^2).
+                    let (b, c) = (k2 * dx, -k2 * dist * dist);
+                    let root = (b * b - 4.0 * a * c).sqrt();
+                    out.all.push(Neighbour {
+                        edgel: j,
+                        weight: 1.0 / dist,
+                        lo: (-b - root) / (2.0 * a),
+                        hi: (-b + root) / (2.0 * a),
+                    });
                 }
             }
-            near
-        })
-        .collect()
+        }
+    }
+    out.start.push(out.all.len() as u32);
+    out
 }
 
 /// Each live candidate's support from the live candidates around it (left edgels in `done`
-/// already have their match and keep their strength).
-fn support(left: &[Edgel], offsets: &[usize], cands: &mut [Candidate], neighbours: &[Vec<Neighbour>], done: &[bool]) {
+/// already have their match and keep their strength). `owner[c]` is candidate `c`'s left edgel.
+fn support(offsets: &[usize], owner: &[u32], cands: &mut [Candidate], neighbours: &Neighbourhoods, done: &[bool]) {
     use rayon::prelude::*;
     let cands_now: &[Candidate] = cands;
-    // Each left edgel's candidates' new strengths, computed in parallel (they only read).
-    let strengths: Vec<Vec<f32>> = (0..left.len())
+    // The new strengths, computed in parallel (they only read), in blocks big enough to be
+    // worth a task each.
+    let strengths: Vec<f32> = (0..cands_now.len())
         .into_par_iter()
-        .map(|l| {
-            let own = &cands_now[offsets[l]..offsets[l + 1]];
+        .with_min_len(256)
+        .map(|c| {
+            let (l, d) = (owner[c] as usize, cands_now[c].disparity);
             if done[l] {
-                return own.iter().map(|c| c.strength).collect();
+                return cands_now[c].strength;
             }
-            own.iter()
-                .map(|c| {
-                    let d = c.disparity;
-                    let mut total = 0.0;
-                    for nb in &neighbours[l] {
-                        let n = nb.edgel as usize;
-                        let theirs = &cands_now[offsets[n]..offsets[n + 1]];
-                        if theirs.iter().any(|nc| nc.alive && (nb.lo..=nb.hi).contains(&(nc.disparity - d))) {
-                            total += nb.weight;
-                        }
-                    }
-                    total
-                })
-                .collect()
+            let mut total = 0.0;
+            for nb in neighbours.of(l) {
+                let n = nb.edgel as usize;
+                let theirs = &cands_now[offsets[n]..offsets[n + 1]];
+                if theirs.iter().any(|nc| nc.alive && (nb.lo..=nb.hi).contains(&(nc.disparity - d))) {
+                    total += nb.weight;
+                }
+            }
+            total
         })
         .collect();
-    for (l, s) in strengths.into_iter().enumerate() {
-        for (c, v) in cands[offsets[l]..offsets[l + 1]].iter_mut().zip(s) {
-            c.strength = v;
-        }
+    for (c, v) in cands.iter_mut().zip(strengths) {
+        c.strength = v;
     }
 }
 

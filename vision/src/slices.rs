@@ -81,22 +81,37 @@ fn rectified_band(rect: &Rectification, side: Side, rows: &Range<usize>, width: 
     })
 }
 
-thread_local! {
-    /// Canny's buffers, kept per worker thread from slice to slice.
-    static SLICE_CANNY: std::cell::RefCell<CannyWorkspace> = Default::default();
+/// What a slice processor keeps from slice to slice: Canny's buffers and the two edge maps
+/// (fresh maps cost page faults every time).
+#[derive(Default)]
+struct SliceBuffers {
+    canny: CannyWorkspace,
+    left: EdgeMap,
+    right: EdgeMap,
 }
 
-/// Canny's edgels from rows `rows` of `img`, found with a little context around them, in
-/// whole-image coordinates; and the map they sit in (sub-image pixels) for linking.
-fn canny_rows(img: &GreyImage, rows: &Range<usize>, params: &CannyParams) -> (EdgeMap, usize) {
+thread_local! {
+    /// One set of buffers per worker thread. Borrowed only where no rayon call can run another
+    /// slice on this thread meanwhile.
+    static SLICE_BUFFERS: std::cell::RefCell<SliceBuffers> = Default::default();
+}
+
+/// Canny's edgels from rows `rows` of `img`, found with a little context around them, into
+/// `out` (sub-image pixels); returns the sub-image's first row.
+fn canny_rows(
+    ws: &mut CannyWorkspace,
+    img: &GreyImage,
+    rows: &Range<usize>,
+    params: &CannyParams,
+    out: &mut EdgeMap,
+) -> usize {
     let from = rows.start.saturating_sub(CANNY_CONTEXT);
     let to = (rows.end + CANNY_CONTEXT).min(img.height);
     let sub = GreyImage::new(img.width, to - from, img.pixels[from * img.width..to * img.width].to_vec())
         .expect("rows are within the image");
-    let mut map = EdgeMap::default();
-    SLICE_CANNY.with(|ws| ws.borrow_mut().run(&sub, params, &mut map));
-    let keep = (rows.start - from)..(rows.end - from);
-    (map.retain_rows(&keep), from)
+    ws.run(&sub, params, out);
+    out.keep_rows(&((rows.start - from)..(rows.end - from)));
+    from
 }
 
 /// What one slice pair found; edgel indices are the slice's own.
@@ -133,15 +148,17 @@ pub fn run_slice(
     params: &CannyParams,
 ) -> SliceResult {
     let mut watch = Stopwatch::start();
-    let (lmap, lfrom) = canny_rows(left, &plan.left, params);
-    let (rmap, rfrom) = canny_rows(right, &plan.right, params);
-    watch.lap("canny");
-    let strings = link_strings(&lmap, MIN_STRING);
-    watch.lap("strings");
-    let left_edgels = shift(&lmap.edgels, lfrom);
-    let left_pixel = (0..lmap.edgels.len()).map(|i| lmap.pixel[i] as usize + lfrom * left.width).collect();
-    let right_edgels = shift(&rmap.edgels, rfrom);
-    let right_pixel = rmap.pixel.iter().map(|&p| p as usize + rfrom * right.width).collect();
+    let (strings, left_edgels, left_pixel, right_edgels, right_pixel) = SLICE_BUFFERS.with(|buffers| {
+        let SliceBuffers { canny, left: lmap, right: rmap } = &mut *buffers.borrow_mut();
+        let lfrom = canny_rows(canny, left, &plan.left, params, lmap);
+        let rfrom = canny_rows(canny, right, &plan.right, params, rmap);
+        watch.lap("canny");
+        let strings = link_strings(lmap, MIN_STRING);
+        watch.lap("strings");
+        let left_pixel = lmap.pixel.iter().map(|&p| p as usize + lfrom * left.width).collect();
+        let right_pixel = rmap.pixel.iter().map(|&p| p as usize + rfrom * right.width).collect();
+        (strings, shift(&lmap.edgels, lfrom), left_pixel, shift(&rmap.edgels, rfrom), right_pixel)
+    });
     let left_rect = rect.rectify_edgels(Side::Left, &left_edgels);
     let right_rect = rect.rectify_edgels(Side::Right, &right_edgels);
     watch.lap("rectify");
