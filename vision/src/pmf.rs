@@ -204,8 +204,7 @@ struct Neighbour {
     hi: f32,
 }
 
-/// Every left edgel's neighbours, one list after another (one allocation, not one per edgel:
-/// growing thousands of small lists was a third of finding them).
+/// Every left edgel's neighbours, one list after another: one allocation, not one per edgel.
 struct Neighbourhoods {
     /// Edgel `l`'s neighbours are `all[start[l]..start[l + 1]]`.
     start: Vec<u32>,

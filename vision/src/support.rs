@@ -143,10 +143,20 @@ impl NearLines {
     fn gather(&mut self, free: &FreeLines, centre: &Point3<f64>, reach: f64) {
         let (cx, cy, cz, r2) = (centre.x as f32, centre.y as f32, centre.z as f32, (reach * reach) as f32);
         self.index.clear();
-        self.index.extend((0..free.index.len()).filter(|&k| {
-            let (dx, dy, dz) = (free.x[k] - cx, free.y[k] - cy, free.z[k] - cz);
-            dx * dx + dy * dy + dz * dz <= r2
-        }));
+        // Eight lines at a time, the tests free of branches so that they vectorise; then the
+        // few that pass are picked out.
+        const LANES: usize = 8;
+        let (xs, ys, zs) = (free.x.chunks(LANES), free.y.chunks(LANES), free.z.chunks(LANES));
+        for (chunk, ((x, y), z)) in xs.zip(ys).zip(zs).enumerate() {
+            let mut inside = [false; LANES];
+            for (i, ((x, y), z)) in x.iter().zip(y).zip(z).enumerate() {
+                let (dx, dy, dz) = (x - cx, y - cy, z - cz);
+                inside[i] = dx * dx + dy * dy + dz * dz <= r2;
+            }
+            if inside.iter().any(|&b| b) {
+                self.index.extend((0..x.len()).filter(|&i| inside[i]).map(|i| chunk * LANES + i));
+            }
+        }
     }
 }
 
