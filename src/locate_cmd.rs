@@ -59,7 +59,12 @@ pub fn run(
             "grasp_cam_from_gripper": grasp.as_ref().map(mesh::pose::PoseRecord::from),
             "support_fraction": loc.support_fraction,
             "image_support": loc.image_support,
-            "scene_lines": loc.scene_lines.len(),
+            // The front end's 3D lines the pose rests on (`cam` frame, metres).
+            "scene_lines": loc.scene_lines.iter().map(|&j| serde_json::json!({
+                "index": j,
+                "a_m": [lines[j].a.x, lines[j].a.y, lines[j].a.z],
+                "b_m": [lines[j].b.x, lines[j].b.y, lines[j].b.z],
+            })).collect::<Vec<_>>(),
             "correct": correct,
             "pos_err_mm": best.map(|(_, (pos, _))| pos * 1e3),
             "rot_err_deg": best.map(|(_, (_, rot))| rot.to_degrees()),

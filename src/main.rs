@@ -97,6 +97,8 @@ enum Command {
         /// Only these models, comma-separated (default: every library model but the flag).
         #[arg(long, value_delimiter = ',')]
         models: Option<Vec<String>>,
+        /// Print JSON: per located object its model, `cam_from_model`, the grasp in `cam`,
+        /// support, image support, the 3D lines it rests on, and its errors; and the misses.
         #[arg(long)]
         json: bool,
         /// Folder for located.png: the located wireframes over the left image.

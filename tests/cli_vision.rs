@@ -93,9 +93,18 @@ fn locate_reports_poses_grasps_and_misses() {
     let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let located = doc["located"].as_array().unwrap();
     assert!(located.iter().any(|l| l["correct"] == true), "nothing located correctly: {doc}");
+    let xyz =
+        |v: &serde_json::Value| -> Vec<f64> { v.as_array().unwrap().iter().map(|c| c.as_f64().unwrap()).collect() };
     for l in located {
-        assert!(l["cam_from_model"]["translation_m"].is_array());
+        let at = xyz(&l["cam_from_model"]["translation_m"]);
         assert!(l["grasp_cam_from_gripper"]["rotation_xyzw"].is_array());
+        // The 3D lines it rests on: at least the three a report needs, each near the object.
+        let lines = l["scene_lines"].as_array().unwrap();
+        assert!(lines.len() >= 3, "{l}");
+        for end in lines.iter().flat_map(|s| [&s["a_m"], &s["b_m"]]) {
+            let d = xyz(end).iter().zip(&at).map(|(p, q)| (p - q).powi(2)).sum::<f64>().sqrt();
+            assert!(d < 0.1, "a line end {d:.3} m from its object: {l}");
+        }
     }
     assert!(doc["missed"].is_array());
     assert!(dir.join("located.png").exists());
