@@ -70,10 +70,16 @@ impl EdgeMap {
     /// Drops the edgels found outside rows `rows`, in place (the same image size and pixel
     /// numbering).
     pub fn keep_rows(&mut self, rows: &std::ops::Range<usize>) {
+        let width = self.width;
+        self.retain(|_, pixel| rows.contains(&(pixel / width)));
+    }
+
+    /// Keeps the edgels `keep` says to (given each one's index and pixel), in order, in place.
+    fn retain(&mut self, mut keep: impl FnMut(usize, usize) -> bool) {
         let mut kept = 0;
         for i in 0..self.edgels.len() {
             let p = self.pixel[i] as usize;
-            if rows.contains(&(p / self.width)) {
+            if keep(i, p) {
                 self.edgels[kept] = self.edgels[i];
                 self.pixel[kept] = p as u32;
                 self.at_pixel[p] = kept as u32;
@@ -270,20 +276,7 @@ impl CannyWorkspace {
                 }
             }
         }
-        let mut kept = 0;
-        for i in 0..map.edgels.len() {
-            let p = map.pixel[i] as usize;
-            if self.keep[i] {
-                map.edgels[kept] = map.edgels[i];
-                map.pixel[kept] = p as u32;
-                map.at_pixel[p] = kept as u32;
-                kept += 1;
-            } else {
-                map.at_pixel[p] = NO_EDGEL;
-            }
-        }
-        map.edgels.truncate(kept);
-        map.pixel.truncate(kept);
+        map.retain(|i, _| self.keep[i]);
     }
 }
 

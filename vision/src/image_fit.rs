@@ -180,22 +180,13 @@ pub fn refine_in_image(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use mesh::PinholeCamera;
 
     /// From 3 degrees and 3 mm off, the image and one true 3D line bring a widget back to
     /// within a fraction of a millimetre and degree of where its edgels are.
     #[test]
     fn a_pose_a_few_degrees_off_is_pulled_onto_its_edgels() {
-        let lib = mesh::Library::load_default().unwrap();
-        let model = MatcherModel::from_model(lib.get("widget").unwrap());
-        let cam = PinholeCamera::looking_at(
-            (512, 512),
-            1000.0,
-            [255.5, 255.5],
-            Point3::new(0.0, -0.5, 0.6),
-            Point3::origin(),
-            Vector3::z(),
-        );
+        let model = crate::fixtures::model("widget");
+        let cam = crate::fixtures::camera_at(Point3::new(0.0, -0.5, 0.6));
         let truth = cam.cam_from_world()
             * Isometry3::from_parts(
                 Translation3::new(0.01, 0.02, 0.02),

@@ -42,3 +42,22 @@ pub mod verify;
 pub use canny::{CannyParams, EdgeMap, Edgel, canny};
 pub use image::GreyImage;
 pub use strings::{EdgeString, link_strings};
+
+/// What the unit tests of several stages set up alike.
+#[cfg(test)]
+pub(crate) mod fixtures {
+    use crate::matcher::MatcherModel;
+    use mesh::PinholeCamera;
+    use nalgebra::{Point3, Vector3};
+
+    /// A library model as the matcher holds it.
+    pub(crate) fn model(name: &str) -> MatcherModel {
+        let lib = mesh::Library::load_default().unwrap();
+        MatcherModel::from_model(lib.get(name).unwrap_or_else(|| panic!("no model `{name}` in the library")))
+    }
+
+    /// A 512x512 camera of 1000 px focal length at `eye`, looking at the world's origin, `z` up.
+    pub(crate) fn camera_at(eye: Point3<f64>) -> PinholeCamera {
+        PinholeCamera::looking_at((512, 512), 1000.0, [255.5, 255.5], eye, Point3::origin(), Vector3::z())
+    }
+}

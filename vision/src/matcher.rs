@@ -563,13 +563,7 @@ pub fn locate_all(
     let all = searches.iter_mut().flat_map(|s| std::mem::take(&mut s.found)).collect();
     resolve(models, all, &mut kept, &mut claimed);
     if let Some(ev) = image.filter(|ev| !ev.lines.is_empty()) {
-        let solids: Vec<crate::occlusion::Solid> = kept
-            .iter()
-            .filter_map(|l| {
-                let model = models.iter().find(|m| m.name == l.model)?;
-                Some(crate::occlusion::Solid::new(model, &l.cam_from_model))
-            })
-            .collect();
+        let solids = solids_of(models, &kept);
         let second: Vec<Located> =
             models.par_iter().flat_map(|m| crate::second_look::locate(m, scene, &claimed, p, ev, &solids)).collect();
         resolve(models, second, &mut kept, &mut claimed);
@@ -579,6 +573,16 @@ pub fn locate_all(
         resolve(models, third, &mut kept, &mut claimed);
     }
     kept
+}
+
+/// The objects located, as solids that may hide other objects' parts.
+fn solids_of(models: &[MatcherModel], kept: &[Located]) -> Vec<crate::occlusion::Solid> {
+    kept.iter()
+        .filter_map(|l| {
+            let model = models.iter().find(|m| m.name == l.model)?;
+            Some(crate::occlusion::Solid::new(model, &l.cam_from_model))
+        })
+        .collect()
 }
 
 /// Candidates that had the 3D evidence but too little of their wireframe ran along edgels,
@@ -595,13 +599,7 @@ fn hidden_in_part(
     p: &MatchParams,
     ev: &crate::verify::ImageEvidence,
 ) -> Vec<Located> {
-    let solids: Vec<crate::occlusion::Solid> = kept
-        .iter()
-        .filter_map(|l| {
-            let model = models.iter().find(|m| m.name == l.model)?;
-            Some(crate::occlusion::Solid::new(model, &l.cam_from_model))
-        })
-        .collect();
+    let solids = solids_of(models, kept);
     let mut out = Vec::new();
     for (model, search) in models.iter().zip(searches) {
         for c in &search.doubtful {
@@ -924,8 +922,7 @@ pub(crate) mod tests {
     use nalgebra::{Translation3, UnitQuaternion};
 
     fn widget() -> MatcherModel {
-        let lib = mesh::Library::load_default().unwrap();
-        MatcherModel::from_model(lib.get("widget").unwrap())
+        crate::fixtures::model("widget")
     }
 
     /// A tiny deterministic generator, so the test needs no RNG crate.
@@ -990,8 +987,7 @@ pub(crate) mod tests {
     /// or an L-bracket whose length lies along the rasters could not be seeded.
     #[test]
     fn focus_lines_run_in_every_direction_the_model_has() {
-        let lib = mesh::Library::load_default().unwrap();
-        let model = MatcherModel::from_model(lib.get("l_bracket").unwrap());
+        let model = crate::fixtures::model("l_bracket");
         let all: Vec<usize> = (0..model.lines.len()).collect();
         let focus = focus_lines(&model, &all, 4);
         assert_eq!(focus.len(), 4);

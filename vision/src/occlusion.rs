@@ -56,8 +56,7 @@ mod tests {
     /// it does hide.
     #[test]
     fn a_block_hides_what_lies_behind_it() {
-        let lib = mesh::Library::load_default().unwrap();
-        let model = MatcherModel::from_model(lib.get("block").unwrap());
+        let model = crate::fixtures::model("block");
         let pose =
             Isometry3::from_parts(Translation3::new(0.0, 0.0, 0.8), UnitQuaternion::from_euler_angles(0.3, 0.2, 0.1));
         let solid = Solid::new(&model, &pose);

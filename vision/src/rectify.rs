@@ -142,16 +142,7 @@ pub(crate) mod tests {
 
     /// The default world's rig: 0.2 m baseline, 0.9 m from the origin, looking down 40 deg.
     pub(crate) fn verged_pair() -> StereoCalibration {
-        let cam = |x: f64| {
-            PinholeCamera::looking_at(
-                (512, 512),
-                1000.0,
-                [255.5, 255.5],
-                Point3::new(x, -0.6894, 0.5785),
-                Point3::origin(),
-                Vector3::z(),
-            )
-        };
+        let cam = |x: f64| crate::fixtures::camera_at(Point3::new(x, -0.6894, 0.5785));
         StereoCalibration { left: cam(-0.1), right: cam(0.1) }
     }
 

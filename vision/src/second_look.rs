@@ -232,22 +232,13 @@ fn keep(best: &mut Vec<(f64, Isometry3<f64>)>, score: f64, pose: Isometry3<f64>)
 #[cfg(test)]
 mod tests {
     use super::*;
-    use mesh::PinholeCamera;
 
     /// A block seen by a camera above it, with one 3D line (a fragment of a top edge) and, in the
     /// image, edgels along every camera-facing edge and an image line along each of them.
     #[test]
     fn one_3d_line_and_the_image_find_a_block() {
-        let lib = mesh::Library::load_default().unwrap();
-        let model = MatcherModel::from_model(lib.get("block").unwrap());
-        let cam = PinholeCamera::looking_at(
-            (512, 512),
-            1000.0,
-            [255.5, 255.5],
-            Point3::new(0.0, -0.6, 0.6),
-            Point3::origin(),
-            Vector3::z(),
-        );
+        let model = crate::fixtures::model("block");
+        let cam = crate::fixtures::camera_at(Point3::new(0.0, -0.6, 0.6));
         let world_from_model = Isometry3::from_parts(
             Translation3::new(0.01, -0.02, 0.015),
             UnitQuaternion::from_euler_angles(0.0, 0.0, 0.5),

@@ -281,17 +281,9 @@ mod tests {
     #[test]
     fn a_part_half_hidden_is_judged_on_what_is_in_view() {
         use crate::occlusion::Solid;
-        use nalgebra::{Point3, Translation3, UnitQuaternion, Vector3};
-        let lib = mesh::Library::load_default().unwrap();
-        let model = MatcherModel::from_model(lib.get("block").unwrap());
-        let cam = PinholeCamera::looking_at(
-            (512, 512),
-            1000.0,
-            [255.5, 255.5],
-            Point3::new(0.0, -0.6, 0.6),
-            Point3::origin(),
-            Vector3::z(),
-        );
+        use nalgebra::{Point3, Translation3, UnitQuaternion};
+        let model = crate::fixtures::model("block");
+        let cam = crate::fixtures::camera_at(Point3::new(0.0, -0.6, 0.6));
         let place = |x: f64, y: f64, z: f64, yaw: f64| {
             cam.cam_from_world()
                 * Isometry3::from_parts(Translation3::new(x, y, z), UnitQuaternion::from_euler_angles(0.0, 0.0, yaw))
