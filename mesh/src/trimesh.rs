@@ -28,6 +28,14 @@ pub fn ray_triangle(o: &Point3<f64>, d: &Vector3<f64>, [a, b, c]: &[Point3<f64>;
     (u >= 0.0 && v >= 0.0 && u + v <= 1.0).then(|| e2.dot(&q) / det)
 }
 
+/// Whether point `p` lies inside the closed surface made of `triangles`: a ray from it crosses
+/// the surface an odd number of times. The ray runs in a direction no model edge or face is
+/// likely to share, so that it does not graze one.
+pub fn encloses(triangles: &[[Point3<f64>; 3]], p: &Point3<f64>) -> bool {
+    let d = Vector3::new(0.8017, 0.4629, 0.3781);
+    triangles.iter().filter_map(|t| ray_triangle(p, &d, t)).filter(|&t| t > 0.0).count() % 2 == 1
+}
+
 impl TriMesh {
     /// The three corners of triangle `t`.
     pub fn corners(&self, t: usize) -> [Point3<f64>; 3] {
@@ -115,5 +123,26 @@ mod tests {
             let centroid = (a.coords + b.coords + c.coords) / 3.0;
             assert!(m.face_normal(t).dot(&centroid) > 0.0, "triangle {t} faces inwards");
         }
+    }
+
+    /// Points of a box are inside it exactly when within its half extents, on a grid a hair off
+    /// the planes of its faces (so its rays pass close by the box's edges).
+    #[test]
+    fn a_box_encloses_exactly_the_points_within_it() {
+        let half = Vector3::new(0.02, 0.015, 0.01);
+        let m = TriMesh::cuboid(half, 0.5);
+        let triangles: Vec<[Point3<f64>; 3]> = (0..m.triangles.len()).map(|t| m.corners(t)).collect();
+        let mut inside = 0;
+        for i in -6..=6 {
+            for j in -6..=6 {
+                for k in -6..=6 {
+                    let p = Point3::new(i as f64 * 0.005 + 1e-6, j as f64 * 0.004 + 1e-6, k as f64 * 0.003 + 1e-6);
+                    let within = p.x.abs() < half.x && p.y.abs() < half.y && p.z.abs() < half.z;
+                    assert_eq!(encloses(&triangles, &p), within, "{p:?}");
+                    inside += usize::from(within);
+                }
+            }
+        }
+        assert!(inside > 50, "only {inside} points inside");
     }
 }

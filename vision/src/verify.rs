@@ -1,12 +1,13 @@
 //! Verification against accidental matches in the image: a located model's wireframe, projected
 //! into the left image where its pose turns its faces to the camera, must run along edgels that
 //! Canny found there (whether or not stereo recovered them). A pose that only happens to line up
-//! a few 3D lines of other objects finds little such evidence.
+//! a few 3D lines of other objects finds little such evidence. The later looks also ask how
+//! much of a candidate's wireframe the objects already located explain ([`Explained`]).
 
 use crate::canny::EdgeMap;
 use crate::matcher::MatcherModel;
 use mesh::PinholeCamera;
-use nalgebra::{Isometry3, Vector2};
+use nalgebra::{Isometry3, Point2, Vector2};
 
 /// What the image offers to verify against: the left camera, its edgels, and the straight
 /// image lines stereo did not lift to 3D (mostly edges near the rasters' direction).
@@ -155,6 +156,83 @@ pub fn image_support_unhidden(
         }
     }
     if unhidden <= 0.0 { (0.0, 0.0) } else { (seen / unhidden, unhidden / all) }
+}
+
+/// The image edges of the objects located so far (their camera-facing wireframes, projected):
+/// evidence those objects already account for. A later candidate whose wireframe runs mostly
+/// along them shows nothing of its own (an L-bracket read into a U-channel's corner does).
+pub struct Explained {
+    /// Image segments, with their unit directions.
+    segments: Vec<(Point2<f64>, Point2<f64>, Vector2<f64>)>,
+}
+
+/// A candidate of a later look whose wireframe runs along located objects' edges for more than
+/// this share of its length is not admitted.
+pub const MAX_EXPLAINED: f64 = 0.5;
+
+/// A sample lies on a located object's edge within this distance (pixels).
+const EXPLAINED_PX: f64 = 2.0;
+
+impl Explained {
+    /// The edges of `located` (models at their poses, `cam` frame) as camera `cam` sees them.
+    pub fn of<'m>(
+        located: impl IntoIterator<Item = (&'m MatcherModel, &'m Isometry3<f64>)>,
+        cam: &PinholeCamera,
+    ) -> Explained {
+        let mut segments = Vec::new();
+        for (model, pose) in located {
+            for (k, line) in model.lines.iter().enumerate() {
+                if !model.faces_camera(k, pose) {
+                    continue;
+                }
+                let (Some(a), Some(b)) = (cam.project_cam(&(pose * line.a)), cam.project_cam(&(pose * line.b))) else {
+                    continue;
+                };
+                if (b - a).norm() > 1e-9 {
+                    segments.push((a, b, (b - a).normalize()));
+                }
+            }
+        }
+        Explained { segments }
+    }
+
+    /// Whether image point `q` on a line running along `dir` lies on one of the edges.
+    fn explains(&self, q: &Point2<f64>, dir: &Vector2<f64>) -> bool {
+        let cos_along = ALONG_RAD.cos();
+        self.segments.iter().any(|(a, b, d)| {
+            if d.dot(dir).abs() < cos_along {
+                return false;
+            }
+            let t = (q - a).dot(d).clamp(0.0, (b - a).norm());
+            (q - (a + d * t)).norm() <= EXPLAINED_PX
+        })
+    }
+
+    /// The share of `model`'s camera-facing wireframe at `pose` (by image length) that runs
+    /// along the edges.
+    pub fn share(&self, model: &MatcherModel, pose: &Isometry3<f64>, cam: &PinholeCamera) -> f64 {
+        let (mut explained, mut all) = (0.0, 0.0);
+        for (k, line) in model.lines.iter().enumerate() {
+            if !model.faces_camera(k, pose) {
+                continue;
+            }
+            let (Some(a), Some(b)) = (cam.project_cam(&(pose * line.a)), cam.project_cam(&(pose * line.b))) else {
+                continue;
+            };
+            let len = (b - a).norm();
+            if len < 2.0 * STEP_PX {
+                continue;
+            }
+            let (steps, dir) = ((len / STEP_PX) as usize, (b - a) / len);
+            for k in 1..steps {
+                all += STEP_PX;
+                if self.explains(&(a + (b - a) * (k as f64 / steps as f64)), &dir) {
+                    explained += STEP_PX;
+                }
+            }
+        }
+        if all <= 0.0 { 0.0 } else { explained / all }
+    }
 }
 
 /// Per pixel, a bit for each orientation (of 32 across 180 deg) of the edgels that the exact
@@ -348,5 +426,25 @@ mod tests {
         }
         // Both outcomes happen, so the test says something.
         assert!(found > 1000 && spared > 1000, "found {found}, spared {spared}");
+    }
+
+    /// An L-bracket read into a U-channel's corner runs along the channel's edges for most of
+    /// its length; a block standing apart runs along none of them.
+    #[test]
+    fn a_part_read_into_a_located_ones_edges_is_explained_by_it() {
+        use nalgebra::{Point3, Translation3};
+        let (channel, bracket, block) =
+            (crate::fixtures::model("u_channel"), crate::fixtures::model("l_bracket"), crate::fixtures::model("block"));
+        let cam = crate::fixtures::camera_at(Point3::new(0.0, -0.6, 0.6));
+        let place = |x: f64, y: f64| {
+            cam.cam_from_world() * Isometry3::from_parts(Translation3::new(x, y, 0.0125), Default::default())
+        };
+        let channel_pose = place(0.0, 0.0);
+        let explained = Explained::of([(&channel, &channel_pose)], &cam);
+        // Moved 5 mm along -x, the bracket's long arm lies in the channel's base and its short
+        // arm is the channel's left arm.
+        assert!(explained.share(&bracket, &place(-0.005, 0.0), &cam) > 0.6);
+        assert_eq!(explained.share(&block, &place(0.15, 0.1), &cam), 0.0);
+        assert_eq!(explained.share(&channel, &channel_pose, &cam), 1.0);
     }
 }
