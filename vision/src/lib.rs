@@ -2,7 +2,7 @@
 //! ([`mesh::StereoCalibration`]) and the model library, never the simulation.
 //!
 //! - [`image`]: grey images as plain data.
-//! - [`canny`]: Canny edges (sigma 1, separable Gaussian) located to sub-pixel acuity.
+//! - [`canny`](mod@canny): Canny edges (sigma 1, separable Gaussian) located to sub-pixel acuity.
 //! - [`strings`]: edgels linked into ordered 8-connected edge strings.
 //! - [`rectify`]: edge locations mapped into a parallel-camera geometry (rows are epipolars).
 //! - [`pmf`]: PMF stereo matching of rectified edgels.

@@ -2,7 +2,7 @@
 //! model's lines where the pose puts them. The matcher ranks every hypothesis by it, so how
 //! it is counted is most of the matcher's time: only the free lines whose midpoints lie near
 //! the model are looked at, and of each only against the model lines its ends lie near (a
-//! grid over the model, [`LineGrid`]).
+//! grid over the model, `LineGrid`).
 
 use crate::matcher::{MatchParams, MatcherModel, Seg};
 use nalgebra::{Isometry3, Point3, Vector3};
