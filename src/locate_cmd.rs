@@ -73,10 +73,11 @@ pub fn run(
     let sought_names: Vec<&str> = sought.iter().map(|m| m.name.as_str()).collect();
     // Each object missed, with what the matcher could have found at its true pose.
     let mp = MatchParams::default();
-    let missed: Vec<serde_json::Value> = truths
+    let missed_truths: Vec<usize> =
+        (0..truths.len()).filter(|&i| !taken[i] && sought_names.contains(&truths[i].0.as_str())).collect();
+    let missed: Vec<serde_json::Value> = missed_truths
         .iter()
-        .enumerate()
-        .filter(|(i, (m, _))| !taken[*i] && sought_names.contains(&m.as_str()))
+        .map(|&i| (i, &truths[i]))
         .filter_map(|(i, (name, pose))| {
             let model = sought.iter().find(|m| &m.name == name)?;
             let (support, lines_seen) = vision::matcher::support_at(model, pose, &lines, &mp);
@@ -131,17 +132,22 @@ pub fn run(
     if let Some(dir) = out {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         let path = dir.join("located.png");
-        draw(&p.left, &located, &scn, &calib.left)
+        let judged: Vec<_> = located.iter().zip(&rows).map(|(l, r)| (l, r["correct"] == true)).collect();
+        let missed_poses: Vec<(&str, Isometry3<f64>)> =
+            missed_truths.iter().map(|&i| (truths[i].0.as_str(), truths[i].1)).collect();
+        draw(&p.left, &judged, &missed_poses, &scn, &calib.left)
             .save(&path)
             .with_context(|| format!("writing {}", path.display()))?;
     }
     Ok(())
 }
 
-/// The left image with each located model's wireframe drawn where the matcher put it.
+/// The left image with each located model's wireframe drawn where the matcher put it (a colour
+/// each; false reports red) and each missed object's true wireframe dashed in white.
 fn draw(
     frame: &sim::render::Frame,
-    located: &[vision::matcher::Located],
+    located: &[(&vision::matcher::Located, bool)],
+    missed: &[(&str, Isometry3<f64>)],
     scn: &Scenario,
     cam: &mesh::PinholeCamera,
 ) -> RgbImage {
@@ -149,25 +155,39 @@ fn draw(
         let g = frame.image[y as usize * frame.width + x as usize];
         Rgb([g, g, g])
     });
-    const COLOURS: [[u8; 3]; 6] =
-        [[255, 60, 60], [60, 255, 60], [80, 140, 255], [255, 220, 40], [255, 80, 255], [40, 230, 230]];
-    for (k, loc) in located.iter().enumerate() {
-        let colour = Rgb(COLOURS[k % COLOURS.len()]);
-        for s in &scn.library.models[&loc.model].wireframe {
-            let (Some(a), Some(b)) =
-                (cam.project_cam(&(loc.cam_from_model * s.a)), cam.project_cam(&(loc.cam_from_model * s.b)))
-            else {
-                continue;
-            };
-            let steps = (b - a).norm().ceil().max(1.0) as usize;
-            for i in 0..=steps {
-                let q = a + (b - a) * (i as f64 / steps as f64);
-                let (x, y) = (q.x.round(), q.y.round());
-                if x >= 0.0 && y >= 0.0 && (x as u32) < img.width() && (y as u32) < img.height() {
-                    img.put_pixel(x as u32, y as u32, colour);
-                }
+    const COLOURS: [[u8; 3]; 5] = [[60, 255, 60], [80, 140, 255], [255, 220, 40], [255, 80, 255], [40, 230, 230]];
+    const FALSE_REPORT: [u8; 3] = [255, 40, 40];
+    for (k, (loc, correct)) in located.iter().enumerate() {
+        let colour = if *correct { COLOURS[k % COLOURS.len()] } else { FALSE_REPORT };
+        draw_wireframe(&mut img, &scn.library.models[&loc.model], &loc.cam_from_model, cam, Rgb(colour), false);
+    }
+    for (model, pose) in missed {
+        draw_wireframe(&mut img, &scn.library.models[*model], pose, cam, Rgb([255, 255, 255]), true);
+    }
+    img
+}
+
+/// Draws `model`'s wireframe at `cam_from_model` into `img`, solid or dashed.
+fn draw_wireframe(
+    img: &mut RgbImage,
+    model: &mesh::Model,
+    cam_from_model: &Isometry3<f64>,
+    cam: &mesh::PinholeCamera,
+    colour: Rgb<u8>,
+    dashed: bool,
+) {
+    for s in &model.wireframe {
+        let (Some(a), Some(b)) = (cam.project_cam(&(cam_from_model * s.a)), cam.project_cam(&(cam_from_model * s.b)))
+        else {
+            continue;
+        };
+        let steps = (b - a).norm().ceil().max(1.0) as usize;
+        for i in (0..=steps).filter(|i| !dashed || i % 8 < 4) {
+            let q = a + (b - a) * (i as f64 / steps as f64);
+            let (x, y) = (q.x.round(), q.y.round());
+            if x >= 0.0 && y >= 0.0 && (x as u32) < img.width() && (y as u32) < img.height() {
+                img.put_pixel(x as u32, y as u32, colour);
             }
         }
     }
-    img
 }

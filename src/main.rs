@@ -101,7 +101,8 @@ enum Command {
         /// support, image support, the 3D lines it rests on, and its errors; and the misses.
         #[arg(long)]
         json: bool,
-        /// Folder for located.png: the located wireframes over the left image.
+        /// Folder for located.png: the located wireframes over the left image (false reports in
+        /// red), and the missed objects' true wireframes dashed in white.
         #[arg(long)]
         out: Option<PathBuf>,
     },
