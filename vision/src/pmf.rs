@@ -127,7 +127,7 @@ pub fn pmf(left: &[Edgel], right: &[Edgel], left_strings: &[EdgeString], p: &Pmf
 }
 
 /// What candidate selection asks of an edgel, worked out once per edgel rather than once per
-/// pair (the trigonometry was most of the candidates' time).
+/// pair: each pair used to take a sine and cosine of both edgels' orientations.
 #[derive(Debug, Clone, Copy)]
 struct Shape {
     /// `dx/dy` along the edge.
