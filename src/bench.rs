@@ -165,87 +165,89 @@ fn scene_size(scn: &Scenario) -> usize {
 pub fn run(target: BenchTarget) -> anyhow::Result<()> {
     match target {
         BenchTarget::Physics(args) => physics(&args),
-        BenchTarget::Render(args) => {
-            let s = setup(&args.world)?;
-            let light = Light::from(&s.scn.world.light);
-            let sigma = s.scn.world.render.noise_sigma;
-            let median = median_ms(args.runs, || {
-                let rs = RenderScene::new(s.scene.world_meshes(&s.scn.library), &light);
-                std::hint::black_box(render_stereo(&rs, &s.calib, sigma, s.scn.world.seed));
-            });
-            let what = format!("stereo pair of {}, {} threads", args.world.display(), rayon::current_num_threads());
-            report(&args, &[("render", median)], &what)
-        }
-        BenchTarget::Vision(args) => {
-            let s = setup(&args.world)?;
-            let rs = RenderScene::new(s.scene.world_meshes(&s.scn.library), &Light::from(&s.scn.world.light));
-            let (l, r) = render_stereo(&rs, &s.calib, s.scn.world.render.noise_sigma, s.scn.world.seed);
-            let left = vision::GreyImage::new(l.width, l.height, l.image).expect("a rendered frame is whole");
-            let right = vision::GreyImage::new(r.width, r.height, r.image).expect("a rendered frame is whole");
-            let params = vision::CannyParams::default();
-            // Buffers reused from run to run, as a pipeline seeing frame after frame does.
-            let (mut ws, mut edges) = (vision::canny::CannyWorkspace::default(), vision::EdgeMap::default());
-            let canny = median_ms(args.runs, || {
-                ws.run(&left, &params, &mut edges);
-                std::hint::black_box(&edges);
-            });
-            let mut whole_stages = StageTimes::default();
-            let whole = median_ms(args.runs, || {
-                whole_stages.add(&marvin::front_end::run(&left, &right, &s.calib, &params).timings_ms);
-            });
-            let mut sliced_stages = StageTimes::default();
-            let sliced = median_ms(args.runs, || {
-                sliced_stages.add(&vision::slices::run_sliced(&left, &right, &s.calib, &params, 8).timings_ms);
-            });
-            let mut results = vec![("canny", canny)];
-            for name in ["strings", "rectify", "pmf", "geom2d", "geom3d"] {
-                results.push((name, whole_stages.median(name)));
-            }
-            for (name, key) in [
-                ("canny", "sliced_canny"),
-                ("strings", "sliced_strings"),
-                ("rectify", "sliced_rectify"),
-                ("pmf", "sliced_pmf"),
-                ("geom2d", "sliced_geom2d"),
-                ("geom3d", "sliced_geom3d"),
-                ("slices", "slices"),
-                ("join", "join"),
-            ] {
-                results.push((key, sliced_stages.median(name)));
-            }
-            results.push(("front_end", sliced));
-            results.push(("front_end_whole", whole));
-            // The matcher: every library model but the flag on the front end's 3D lines, with the
-            // left image's edgels for verification; and the whole cycle, stereo pair in, located
-            // objects out.
-            let models = crate::eval_cmd::matcher_models(&s.scn.library, None);
-            let mp = vision::matcher::MatchParams::default();
-            let fe = vision::slices::run_sliced(&left, &right, &s.calib, &params, 8);
-            let lines: Vec<vision::matcher::Seg> =
-                fe.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
-            let evidence = vision::verify::ImageEvidence::of(&s.calib.left, &fe);
-            let image_evidence = median_ms(args.runs, || {
-                std::hint::black_box(vision::verify::ImageEvidence::of(&s.calib.left, &fe));
-            });
-            let matching = median_ms(args.runs, || {
-                std::hint::black_box(vision::matcher::locate_all(&models, &lines, &mp, Some(&evidence)));
-            });
-            let cycle = median_ms(args.runs, || {
-                let fe = vision::slices::run_sliced(&left, &right, &s.calib, &params, 8);
-                let lines: Vec<vision::matcher::Seg> =
-                    fe.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
-                let evidence = vision::verify::ImageEvidence::of(&s.calib.left, &fe);
-                std::hint::black_box(vision::matcher::locate_all(&models, &lines, &mp, Some(&evidence)));
-            });
-            results.push(("image_evidence", image_evidence));
-            results.push(("match", matching));
-            results.push(("vision_cycle", cycle));
-            let what = format!(
-                "{}; canny one thread, the rest {} threads",
-                args.world.display(),
-                rayon::current_num_threads()
-            );
-            report(&args, &results, &what)
-        }
+        BenchTarget::Render(args) => render(&args),
+        BenchTarget::Vision(args) => vision(&args),
     }
+}
+
+/// `marvin bench render`.
+fn render(args: &BenchArgs) -> anyhow::Result<()> {
+    let s = setup(&args.world)?;
+    let light = Light::from(&s.scn.world.light);
+    let sigma = s.scn.world.render.noise_sigma;
+    let median = median_ms(args.runs, || {
+        let rs = RenderScene::new(s.scene.world_meshes(&s.scn.library), &light);
+        std::hint::black_box(render_stereo(&rs, &s.calib, sigma, s.scn.world.seed));
+    });
+    let what = format!("stereo pair of {}, {} threads", args.world.display(), rayon::current_num_threads());
+    report(args, &[("render", median)], &what)
+}
+
+/// `marvin bench vision`: the front end's stages, then the matcher and the whole cycle.
+fn vision(args: &BenchArgs) -> anyhow::Result<()> {
+    let s = setup(&args.world)?;
+    let rs = RenderScene::new(s.scene.world_meshes(&s.scn.library), &Light::from(&s.scn.world.light));
+    let (l, r) = render_stereo(&rs, &s.calib, s.scn.world.render.noise_sigma, s.scn.world.seed);
+    let left = vision::GreyImage::new(l.width, l.height, l.image).expect("a rendered frame is whole");
+    let right = vision::GreyImage::new(r.width, r.height, r.image).expect("a rendered frame is whole");
+    let params = vision::CannyParams::default();
+    // Buffers reused from run to run, as a pipeline seeing frame after frame does.
+    let (mut ws, mut edges) = (vision::canny::CannyWorkspace::default(), vision::EdgeMap::default());
+    let canny = median_ms(args.runs, || {
+        ws.run(&left, &params, &mut edges);
+        std::hint::black_box(&edges);
+    });
+    let mut whole_stages = StageTimes::default();
+    let whole = median_ms(args.runs, || {
+        whole_stages.add(&marvin::front_end::run(&left, &right, &s.calib, &params).timings_ms);
+    });
+    let mut sliced_stages = StageTimes::default();
+    let sliced = median_ms(args.runs, || {
+        sliced_stages.add(&vision::slices::run_sliced(&left, &right, &s.calib, &params, 8).timings_ms);
+    });
+    let mut results = vec![("canny", canny)];
+    for name in ["strings", "rectify", "pmf", "geom2d", "geom3d"] {
+        results.push((name, whole_stages.median(name)));
+    }
+    for (name, key) in [
+        ("canny", "sliced_canny"),
+        ("strings", "sliced_strings"),
+        ("rectify", "sliced_rectify"),
+        ("pmf", "sliced_pmf"),
+        ("geom2d", "sliced_geom2d"),
+        ("geom3d", "sliced_geom3d"),
+        ("slices", "slices"),
+        ("join", "join"),
+    ] {
+        results.push((key, sliced_stages.median(name)));
+    }
+    results.push(("front_end", sliced));
+    results.push(("front_end_whole", whole));
+    // The matcher: every library model but the flag on the front end's 3D lines, with the
+    // left image's edgels for verification; and the whole cycle, stereo pair in, located
+    // objects out.
+    let models = crate::eval_cmd::matcher_models(&s.scn.library, None);
+    let mp = vision::matcher::MatchParams::default();
+    let fe = vision::slices::run_sliced(&left, &right, &s.calib, &params, 8);
+    let lines: Vec<vision::matcher::Seg> =
+        fe.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
+    let evidence = vision::verify::ImageEvidence::of(&s.calib.left, &fe);
+    let image_evidence = median_ms(args.runs, || {
+        std::hint::black_box(vision::verify::ImageEvidence::of(&s.calib.left, &fe));
+    });
+    let matching = median_ms(args.runs, || {
+        std::hint::black_box(vision::matcher::locate_all(&models, &lines, &mp, Some(&evidence)));
+    });
+    let cycle = median_ms(args.runs, || {
+        let fe = vision::slices::run_sliced(&left, &right, &s.calib, &params, 8);
+        let lines: Vec<vision::matcher::Seg> =
+            fe.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
+        let evidence = vision::verify::ImageEvidence::of(&s.calib.left, &fe);
+        std::hint::black_box(vision::matcher::locate_all(&models, &lines, &mp, Some(&evidence)));
+    });
+    results.push(("image_evidence", image_evidence));
+    results.push(("match", matching));
+    results.push(("vision_cycle", cycle));
+    let what = format!("{}; canny one thread, the rest {} threads", args.world.display(), rayon::current_num_threads());
+    report(args, &results, &what)
 }
