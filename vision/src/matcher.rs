@@ -25,7 +25,7 @@
 use crate::pose_fit::{
     DirectionPair, PointOnLine, pose_from_lines, rotation_from_two_directions, translation_from_points,
 };
-use crate::support::{FreeLines, NearLines, support, support_score};
+use crate::support::{FreeLines, NearLines, model_lines_of, scene_lines_of, support, support_score};
 pub use crate::support::{correspondences_at, support_at};
 use nalgebra::{Isometry3, Point3, Vector3};
 use serde::{Deserialize, Serialize};
@@ -90,9 +90,10 @@ impl MatcherModel {
         let mut longest_first: Vec<usize> = (0..lines.len()).collect();
         longest_first.sort_by(|&a, &b| lines[b].len.total_cmp(&lines[a].len));
         let triangles: Vec<[Point3<f64>; 3]> = (0..m.mesh.triangles.len()).map(|t| m.mesh.corners(t)).collect();
+        let bounds = m.mesh.bounds().unwrap_or((Point3::origin(), Point3::origin()));
         MatcherModel {
-            interior: interior_points(&m.mesh, &triangles),
-            bounds: m.mesh.bounds().unwrap_or((Point3::origin(), Point3::origin())),
+            interior: interior_points(bounds, &triangles),
+            bounds,
             sphere: (centre, radius),
             longest_first,
             name: m.name.clone(),
@@ -110,10 +111,9 @@ impl MatcherModel {
 /// Spacing of the grid of points that fills a model (metres).
 const INTERIOR_STEP: f64 = 0.004;
 
-/// The points of a grid over the mesh's bounds that lie inside it (grid nodes fall half a step
+/// The points of a grid over a solid's bounds that lie inside its surface `triangles` (grid nodes fall half a step
 /// in from the bounds, off the planes of the faces).
-fn interior_points(mesh: &mesh::TriMesh, triangles: &[[Point3<f64>; 3]]) -> Vec<Point3<f64>> {
-    let Some((lo, hi)) = mesh.bounds() else { return Vec::new() };
+fn interior_points((lo, hi): (Point3<f64>, Point3<f64>), triangles: &[[Point3<f64>; 3]]) -> Vec<Point3<f64>> {
     let steps = (hi - lo).map(|e| (e / INTERIOR_STEP).ceil().max(1.0) as usize);
     let mut out = Vec::new();
     for i in 0..steps.x {
@@ -479,13 +479,11 @@ fn locate_from(
             .into_iter()
             .filter_map(|start| {
                 let (pose, score, pairs) = refine(model, scene, &free, start, p);
-                let mut lines_seen: Vec<usize> = pairs.iter().map(|&(i, ..)| i).collect();
-                lines_seen.sort_unstable();
-                lines_seen.dedup();
-                if score / model.total_length < p.min_support_fraction || lines_seen.len() < p.min_support_lines {
+                let lines_seen = model_lines_of(&pairs).len();
+                if score / model.total_length < p.min_support_fraction || lines_seen < p.min_support_lines {
                     return None;
                 }
-                let min_image = image_support_needed(lines_seen.len(), p);
+                let min_image = image_support_needed(lines_seen, p);
                 let image_support = match image {
                     Some(ev) => match crate::verify::image_support_at_least(model, &pose, ev, min_image) {
                         Some(s) if s >= min_image => s,
@@ -567,9 +565,7 @@ struct Candidate {
 impl Candidate {
     /// The candidate reported as an instance of `model`, with its image support.
     fn located(&self, model: &MatcherModel, image_support: f64) -> Located {
-        let mut used: Vec<usize> = self.pairs.iter().map(|&(_, j, _)| j).collect();
-        used.sort_unstable();
-        used.dedup();
+        let used = scene_lines_of(&self.pairs);
         Located {
             model: model.name.clone(),
             cam_from_model: self.pose,

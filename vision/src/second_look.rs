@@ -20,7 +20,7 @@
 use crate::image_fit::{SEARCH_PX, refine_in_image};
 use crate::matcher::{Located, MatchParams, MatcherModel, Seg, line_angle};
 use crate::occlusion::{MIN_IN_VIEW, Solid};
-use crate::support::support;
+use crate::support::{model_lines_of, scene_lines_of, support};
 use crate::verify::{
     Explained, ImageEvidence, ImageLine, MAX_EXPLAINED, image_support_at_least, image_support_unhidden,
 };
@@ -198,12 +198,7 @@ pub fn locate(
     best.into_iter()
         .filter_map(|(in_view, pose)| {
             let (score, pairs) = support(model, &pose, scene, &free, p);
-            let mut used: Vec<usize> = pairs.iter().map(|&(_, j, _)| j).collect();
-            used.sort_unstable();
-            used.dedup();
-            let mut model_lines: Vec<usize> = pairs.iter().map(|&(i, ..)| i).collect();
-            model_lines.sort_unstable();
-            model_lines.dedup();
+            let (used, model_lines) = (scene_lines_of(&pairs), model_lines_of(&pairs));
             if explained.share(model, &pose, ev.cam) > MAX_EXPLAINED {
                 return None;
             }

@@ -28,10 +28,24 @@ pub(crate) fn overlap(model: &Seg, scene: &Seg, cos_tolerance: f64, p: &MatchPar
 /// the model lines seen), for diagnosis and evaluation.
 pub fn support_at(model: &MatcherModel, pose: &Isometry3<f64>, scene: &[Seg], p: &MatchParams) -> (f64, usize) {
     let (score, pairs) = support(model, pose, scene, &vec![true; scene.len()], p);
-    let mut lines: Vec<usize> = pairs.iter().map(|&(i, ..)| i).collect();
-    lines.sort_unstable();
-    lines.dedup();
-    (score / model.total_length, lines.len())
+    (score / model.total_length, model_lines_of(&pairs).len())
+}
+
+/// The distinct model lines of (model line, scene line, overlap) correspondences, in order.
+pub(crate) fn model_lines_of(pairs: &[(usize, usize, f64)]) -> Vec<usize> {
+    distinct(pairs.iter().map(|&(i, ..)| i))
+}
+
+/// The distinct scene lines of (model line, scene line, overlap) correspondences, in order.
+pub(crate) fn scene_lines_of(pairs: &[(usize, usize, f64)]) -> Vec<usize> {
+    distinct(pairs.iter().map(|&(_, j, _)| j))
+}
+
+fn distinct(indices: impl Iterator<Item = usize>) -> Vec<usize> {
+    let mut v: Vec<usize> = indices.collect();
+    v.sort_unstable();
+    v.dedup();
+    v
 }
 
 /// The (model line, scene line, overlap length) correspondences a pose finds, for diagnosis.

@@ -68,6 +68,19 @@ const NEAR_PX: f64 = 1.5;
 /// ...whose edge runs within this angle (radians) of the projected line counts as evidence.
 pub(crate) const ALONG_RAD: f64 = 0.35;
 
+/// Each line of `model` that `pose` turns towards the camera, with its ends in `cam` and their
+/// image points (lines with an end behind the camera are left out).
+fn facing_lines<'m>(
+    model: &'m MatcherModel,
+    pose: &'m Isometry3<f64>,
+    cam: &'m PinholeCamera,
+) -> impl Iterator<Item = ([nalgebra::Point3<f64>; 2], [Point2<f64>; 2])> + 'm {
+    model.lines.iter().enumerate().filter(|(k, _)| model.faces_camera(*k, pose)).filter_map(move |(_, line)| {
+        let (a3, b3) = (pose * line.a, pose * line.b);
+        Some(([a3, b3], [cam.project_cam(&a3)?, cam.project_cam(&b3)?]))
+    })
+}
+
 /// The fraction of the projected, camera-facing wireframe (by length in the image) that runs
 /// along edgels.
 pub fn image_support(model: &MatcherModel, pose: &Isometry3<f64>, ev: &ImageEvidence) -> f64 {
@@ -84,13 +97,7 @@ pub fn image_support_at_least(
 ) -> Option<f64> {
     let mut segments = Vec::new();
     let mut all = 0.0;
-    for (k, line) in model.lines.iter().enumerate() {
-        if !model.faces_camera(k, pose) {
-            continue;
-        }
-        let (Some(a), Some(b)) = (ev.cam.project_cam(&(pose * line.a)), ev.cam.project_cam(&(pose * line.b))) else {
-            continue;
-        };
+    for (_, [a, b]) in facing_lines(model, pose, ev.cam) {
         let len = (b - a).norm();
         if len < 2.0 * STEP_PX {
             continue;
@@ -130,12 +137,7 @@ pub fn image_support_unhidden(
     solids: &[&crate::occlusion::Solid],
 ) -> (f64, f64) {
     let (mut seen, mut unhidden, mut all) = (0.0, 0.0, 0.0);
-    for (k, line) in model.lines.iter().enumerate() {
-        if !model.faces_camera(k, pose) {
-            continue;
-        }
-        let (a3, b3) = (pose * line.a, pose * line.b);
-        let (Some(a), Some(b)) = (ev.cam.project_cam(&a3), ev.cam.project_cam(&b3)) else { continue };
+    for ([a3, b3], [a, b]) in facing_lines(model, pose, ev.cam) {
         let len = (b - a).norm();
         if len < 2.0 * STEP_PX {
             continue;
@@ -181,16 +183,8 @@ impl Explained {
     ) -> Explained {
         let mut segments = Vec::new();
         for (model, pose) in located {
-            for (k, line) in model.lines.iter().enumerate() {
-                if !model.faces_camera(k, pose) {
-                    continue;
-                }
-                let (Some(a), Some(b)) = (cam.project_cam(&(pose * line.a)), cam.project_cam(&(pose * line.b))) else {
-                    continue;
-                };
-                if (b - a).norm() > 1e-9 {
-                    segments.push((a, b, (b - a).normalize()));
-                }
+            for (_, [a, b]) in facing_lines(model, pose, cam).filter(|(_, [a, b])| (b - a).norm() > 1e-9) {
+                segments.push((a, b, (b - a).normalize()));
             }
         }
         Explained { segments }
@@ -212,13 +206,7 @@ impl Explained {
     /// along the edges.
     pub fn share(&self, model: &MatcherModel, pose: &Isometry3<f64>, cam: &PinholeCamera) -> f64 {
         let (mut explained, mut all) = (0.0, 0.0);
-        for (k, line) in model.lines.iter().enumerate() {
-            if !model.faces_camera(k, pose) {
-                continue;
-            }
-            let (Some(a), Some(b)) = (cam.project_cam(&(pose * line.a)), cam.project_cam(&(pose * line.b))) else {
-                continue;
-            };
+        for (_, [a, b]) in facing_lines(model, pose, cam) {
             let len = (b - a).norm();
             if len < 2.0 * STEP_PX {
                 continue;
