@@ -5,7 +5,7 @@ use crate::truth::TruthScene;
 use mesh::StereoCalibration;
 use nalgebra::Point3;
 use serde::Serialize;
-use vision::rectify::Rectification;
+use vision::front_end::rectify::Rectification;
 
 /// How matched disparities compare with the truth.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]

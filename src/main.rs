@@ -1,13 +1,9 @@
-//! `marvin`: the command line of the MARVIN rebuild.
+//! `marvin`: the command line of the MARVIN rebuild: its arguments and which verb of
+//! [`cli`] each runs.
 
-mod bench;
-mod edges_cmd;
-mod eval_cmd;
-mod eval_pick;
-mod locate_cmd;
-mod pick_cmd;
-mod render_cmd;
-mod stereo_cmd;
+mod cli;
+
+use cli::{bench, edges, eval, locate, pick, render, stereo};
 
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
@@ -74,7 +70,7 @@ enum Command {
         #[arg(long, requires = "disparity")]
         rectified: bool,
         /// Disparity range MIN:MAX in pixels, for --rectified images.
-        #[arg(long, value_parser = stereo_cmd::parse_range)]
+        #[arg(long, value_parser = stereo::parse_range)]
         disparity: Option<(f32, f32)>,
         /// Horizontal slices processed in parallel and joined, as MARVIN's processors did (1: the
         /// whole image at once). Calibrated pairs only; rectified input runs whole.
@@ -130,7 +126,7 @@ enum Command {
     /// Run seeded scenes through the pipeline and compare with ground truth.
     Eval {
         #[command(subcommand)]
-        what: eval_cmd::EvalTarget,
+        what: eval::EvalTarget,
     },
     /// Measure how fast things run; prints medians.
     Bench {
@@ -139,31 +135,19 @@ enum Command {
     },
 }
 
-/// Prints a line to stdout; a reader that went away early (`marvin ... | head`) is no error.
-pub(crate) fn emit(line: &str) -> anyhow::Result<()> {
-    use std::io::Write;
-    let mut out = std::io::stdout().lock();
-    match writeln!(out, "{line}").and_then(|()| out.flush()) {
-        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
-        other => Ok(other?),
-    }
-}
-
 fn main() -> std::process::ExitCode {
     let result = match Cli::parse().command {
-        Command::Render { world, seed, out } => render_cmd::run(&world, seed, &out),
-        Command::Edges { image, sigma, json, out } => edges_cmd::run(&image, sigma, json, out.as_deref()),
+        Command::Render { world, seed, out } => render::run(&world, seed, &out),
+        Command::Edges { image, sigma, json, out } => edges::run(&image, sigma, json, out.as_deref()),
         Command::Stereo { left, right, calib, rectified, disparity, slices, json, out } => {
-            stereo_cmd::geometry(calib.as_deref(), rectified, disparity)
-                .and_then(|g| stereo_cmd::run(&left, &right, &g, slices as usize, json, out.as_deref()))
+            stereo::geometry(calib.as_deref(), rectified, disparity)
+                .and_then(|g| stereo::run(&left, &right, &g, slices as usize, json, out.as_deref()))
         }
-        Command::Locate { world, seed, models, json, out } => {
-            locate_cmd::run(&world, seed, models, json, out.as_deref())
-        }
+        Command::Locate { world, seed, models, json, out } => locate::run(&world, seed, models, json, out.as_deref()),
         Command::Pick { world, object, all: _, model, seed, json } => {
-            pick_cmd::run(&world, object, model.as_deref(), seed, json)
+            pick::run(&world, object, model.as_deref(), seed, json)
         }
-        Command::Eval { what } => eval_cmd::run(what),
+        Command::Eval { what } => eval::run(what),
         Command::Bench { what } => bench::run(what),
     };
     match result {

@@ -2,7 +2,7 @@
 
 use mesh::{PinholeCamera, TriMesh};
 use nalgebra::{Point3, Vector3};
-use vision::rectify::Rectification;
+use vision::front_end::rectify::Rectification;
 
 /// The scene's surfaces as world-space triangles.
 pub struct TruthScene {

@@ -45,7 +45,7 @@ fn the_default_world_meets_the_front_end_targets() {
         let left = vision::GreyImage::new(l.width, l.height, l.image.clone()).unwrap();
         let right = vision::GreyImage::new(r.width, r.height, r.image).unwrap();
         // The front end as shipped: 8 slices, joined.
-        let fe = vision::slices::run_sliced(&left, &right, &calib, &vision::CannyParams::default(), 8);
+        let fe = vision::front_end::slices::run_sliced(&left, &right, &calib, &vision::CannyParams::default(), 8);
         let truth = TruthScene::new(scene.world_meshes(&scn.library).map(|(_, m)| m));
         disparities.add(&disparity_stats(&fe, &truth, &calib));
         lines.add(&marvin::eval::line_stats(&fe, &scene, &scn.library, &calib, &l.depth));
@@ -75,7 +75,7 @@ fn sliced_and_whole_image_runs_agree() {
         let right = vision::GreyImage::new(r.width, r.height, r.image).unwrap();
         let params = vision::CannyParams::default();
         let whole = marvin::front_end::run(&left, &right, &calib, &params);
-        let sliced = vision::slices::run_sliced(&left, &right, &calib, &params, 8);
+        let sliced = vision::front_end::slices::run_sliced(&left, &right, &calib, &params, 8);
         let near = |p: [f64; 3], q: [f64; 3]| (0..3).map(|i| (p[i] - q[i]).powi(2)).sum::<f64>().sqrt() <= 5e-4;
         for a in &whole.lines3d {
             total += 1;

@@ -2,12 +2,36 @@
 //! models give, and settling until everything is at rest.
 
 use crate::convert;
-use crate::scene::StaticBox;
 use crate::world::PhysicsSpec;
 use mesh::Model;
+use mesh::TriMesh;
 use mesh::model::Collision;
-use nalgebra::Isometry3;
+use nalgebra::{Isometry3, Vector3};
 use rapier3d::prelude::*;
+
+/// A fixed box of the cell: floor, table top, bin walls.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StaticBox {
+    pub name: String,
+    pub world_from_box: Isometry3<f64>,
+    pub half_extents: Vector3<f64>,
+    pub albedo: f64,
+}
+
+impl StaticBox {
+    pub(crate) fn at(name: String, centre: [f64; 3], half: [f64; 3], albedo: f64) -> Self {
+        StaticBox {
+            name,
+            world_from_box: Isometry3::translation(centre[0], centre[1], centre[2]),
+            half_extents: Vector3::from(half),
+            albedo,
+        }
+    }
+
+    pub fn mesh(&self) -> TriMesh {
+        TriMesh::cuboid(self.half_extents, self.albedo as f32).transformed(&self.world_from_box)
+    }
+}
 
 /// Speeds under which a body counts as at rest (m/s and rad/s).
 const REST_LINEAR: f32 = 2e-3;

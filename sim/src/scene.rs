@@ -2,10 +2,10 @@
 //! table, bins) and objects at rest, with their ground-truth poses.
 
 use crate::arm::{HOME, SimArm};
-use crate::physics::{Cell, SettleReport};
+use crate::physics::{Cell, SettleReport, StaticBox};
 use crate::world::{WorldError, WorldFile};
 use mesh::{Library, TriMesh};
-use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3, Vector4};
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector4};
 use rand::{RngExt, SeedableRng, rngs::StdRng};
 use rand_distr::StandardNormal;
 use std::path::{Path, PathBuf};
@@ -45,30 +45,6 @@ impl Scenario {
 const MAX_DROPS: u32 = 5;
 /// Deepest interpenetration a settled scene may keep, metres.
 const MAX_CONTACT_DEPTH: f64 = 0.75e-3;
-
-/// A fixed box of the cell: floor, table top, bin walls.
-#[derive(Debug, Clone, PartialEq)]
-pub struct StaticBox {
-    pub name: String,
-    pub world_from_box: Isometry3<f64>,
-    pub half_extents: Vector3<f64>,
-    pub albedo: f64,
-}
-
-impl StaticBox {
-    fn at(name: String, centre: [f64; 3], half: [f64; 3], albedo: f64) -> Self {
-        StaticBox {
-            name,
-            world_from_box: Isometry3::translation(centre[0], centre[1], centre[2]),
-            half_extents: Vector3::from(half),
-            albedo,
-        }
-    }
-
-    pub fn mesh(&self) -> TriMesh {
-        TriMesh::cuboid(self.half_extents, self.albedo as f32).transformed(&self.world_from_box)
-    }
-}
 
 /// The fixed boxes of a world: the floor, the table (top at `z = 0`) and each bin.
 pub fn static_boxes(world: &WorldFile) -> Vec<StaticBox> {
@@ -206,4 +182,23 @@ fn initial_poses(scn: &Scenario, seed: u64) -> Vec<SceneObject> {
         });
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_shipped_worlds_load() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds");
+        let mut n = 0;
+        for entry in std::fs::read_dir(dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_some_and(|e| e == "toml") {
+                Scenario::load(&path).unwrap_or_else(|e| panic!("{e}"));
+                n += 1;
+            }
+        }
+        assert!(n >= 1);
+    }
 }

@@ -6,7 +6,7 @@
 //! about the line and a shift along it. The image line's plane through the camera must hold the
 //! model edge that leaves the same corner: its direction fixes the turn (up to two solutions of
 //! `A cos θ + B sin θ + C = 0`) and the corner itself, which lies in that plane, fixes the shift.
-//! The pose is then refined on the image's edgels and that 3D line ([`crate::image_fit`]).
+//! The pose is then refined on the image's edgels and that 3D line ([`super::image_fit`]).
 //! Such poses rest on little 3D evidence, so they must be borne out by the image: most of the
 //! camera-facing wireframe along edgels. Where 3D lines lie along two or more of its edges, 70%
 //! of the part that the objects already located leave in view (parts seen at all are mostly
@@ -14,14 +14,14 @@
 //! scenes, and one of 13 over seeds 51-80, with no false report gained by excusing it); where
 //! along one, 85% of all of it, none excused (excused, that found one more object and three
 //! false reports over 110 scenes). Either way no more than half of its wireframe may run along
-//! the image edges of objects already located ([`crate::verify::Explained`]): a part read into
+//! the image edges of objects already located ([`Explained`]): a part read into
 //! another's corner shows nothing of its own (an L-bracket on a U-channel, seed 109).
 
-use crate::image_fit::{SEARCH_PX, refine_in_image};
-use crate::matcher::{Located, MatchParams, MatcherModel, Seg, line_angle};
-use crate::occlusion::{MIN_IN_VIEW, Solid};
-use crate::support::{model_lines_of, scene_lines_of, support};
-use crate::verify::{
+use super::image_fit::{SEARCH_PX, refine_in_image};
+use super::model::{Located, MatchParams, MatcherModel, Seg, line_angle};
+use super::occlusion::{MIN_IN_VIEW, Solid};
+use super::support::{model_lines_of, scene_lines_of, support};
+use super::verify::{
     Explained, ImageEvidence, ImageLine, MAX_EXPLAINED, image_support_at_least, image_support_unhidden,
 };
 use nalgebra::{Isometry3, Point2, Point3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3};
@@ -240,14 +240,14 @@ mod tests {
     /// image, edgels along every camera-facing edge and an image line along each of them.
     #[test]
     fn one_3d_line_and_the_image_find_a_block() {
-        let model = crate::fixtures::model("block");
-        let cam = crate::fixtures::camera_at(Point3::new(0.0, -0.6, 0.6));
+        let model = crate::matcher::fixtures::model("block");
+        let cam = crate::matcher::fixtures::camera_at(Point3::new(0.0, -0.6, 0.6));
         let world_from_model = Isometry3::from_parts(
             Translation3::new(0.01, -0.02, 0.015),
             UnitQuaternion::from_euler_angles(0.0, 0.0, 0.5),
         );
         let pose = cam.cam_from_world() * world_from_model;
-        let (edges, lines) = crate::verify::drawn::model_edges(&model, &pose, &cam);
+        let (edges, lines) = crate::matcher::verify::drawn::model_edges(&model, &pose, &cam);
         // The one 3D line: 80% of the longest camera-facing edge.
         let k = (0..model.lines.len())
             .filter(|&k| model.faces_camera(k, &pose))

@@ -4,8 +4,8 @@
 //! a few 3D lines of other objects finds little such evidence. The later looks also ask how
 //! much of a candidate's wireframe the objects already located explain ([`Explained`]).
 
-use crate::canny::EdgeMap;
-use crate::matcher::MatcherModel;
+use super::model::MatcherModel;
+use crate::front_end::canny::EdgeMap;
 use mesh::PinholeCamera;
 use nalgebra::{Isometry3, Point2, Vector2};
 
@@ -48,7 +48,8 @@ impl<'a> ImageEvidence<'a> {
                 .filter(|(i, l)| !lifted.contains(&(*i as u32)) && l.length() as f64 >= MIN_IMAGE_LINE_PX)
                 .map(|(_, l)| {
                     let px = |p: [f32; 2]| {
-                        let (x, y) = rect.from_rectified(crate::rectify::Side::Left, p[0] as f64, p[1] as f64);
+                        let (x, y) =
+                            rect.from_rectified(crate::front_end::rectify::Side::Left, p[0] as f64, p[1] as f64);
                         nalgebra::Point2::new(x, y)
                     };
                     let (a, b) = (px(l.start), px(l.end));
@@ -134,7 +135,7 @@ pub fn image_support_unhidden(
     model: &MatcherModel,
     pose: &Isometry3<f64>,
     ev: &ImageEvidence,
-    solids: &[&crate::occlusion::Solid],
+    solids: &[&super::occlusion::Solid],
 ) -> (f64, f64) {
     let (mut seen, mut unhidden, mut all) = (0.0, 0.0, 0.0);
     for ([a3, b3], [a, b]) in facing_lines(model, pose, ev.cam) {
@@ -305,7 +306,7 @@ fn edgel_along(edges: &EdgeMap, x: f64, y: f64, dir: Vector2<f64>) -> bool {
 #[cfg(test)]
 pub(crate) mod drawn {
     use super::*;
-    use crate::canny::Edgel;
+    use crate::front_end::canny::Edgel;
 
     /// Edgels one pixel apart along every camera-facing edge of `model` at `pose` (a 512 x 512
     /// image), and an image line along each such edge.
@@ -339,17 +340,17 @@ pub(crate) mod drawn {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::canny::Edgel;
+    use crate::front_end::canny::Edgel;
 
     /// A block half behind another shows edgels only where it is in view: counted over its
     /// whole camera-facing wireframe its image support falls well short, counted over the part
     /// the other leaves in view it is whole.
     #[test]
     fn a_part_half_hidden_is_judged_on_what_is_in_view() {
-        use crate::occlusion::Solid;
+        use crate::matcher::occlusion::Solid;
         use nalgebra::{Point3, Translation3, UnitQuaternion};
-        let model = crate::fixtures::model("block");
-        let cam = crate::fixtures::camera_at(Point3::new(0.0, -0.6, 0.6));
+        let model = crate::matcher::fixtures::model("block");
+        let cam = crate::matcher::fixtures::camera_at(Point3::new(0.0, -0.6, 0.6));
         let place = |x: f64, y: f64, z: f64, yaw: f64| {
             cam.cam_from_world()
                 * Isometry3::from_parts(Translation3::new(x, y, z), UnitQuaternion::from_euler_angles(0.0, 0.0, yaw))
@@ -421,9 +422,12 @@ mod tests {
     #[test]
     fn a_part_read_into_a_located_ones_edges_is_explained_by_it() {
         use nalgebra::{Point3, Translation3};
-        let (channel, bracket, block) =
-            (crate::fixtures::model("u_channel"), crate::fixtures::model("l_bracket"), crate::fixtures::model("block"));
-        let cam = crate::fixtures::camera_at(Point3::new(0.0, -0.6, 0.6));
+        let (channel, bracket, block) = (
+            crate::matcher::fixtures::model("u_channel"),
+            crate::matcher::fixtures::model("l_bracket"),
+            crate::matcher::fixtures::model("block"),
+        );
+        let cam = crate::matcher::fixtures::camera_at(Point3::new(0.0, -0.6, 0.6));
         let place = |x: f64, y: f64| {
             cam.cam_from_world() * Isometry3::from_parts(Translation3::new(x, y, 0.0125), Default::default())
         };

@@ -5,7 +5,7 @@
 //! Rectified frame: `x` along the baseline (left centre to right centre), `z` the mean of the two
 //! optical axes made perpendicular to it, `y = z x x` (down in the image, as in the cameras).
 
-use crate::canny::Edgel;
+use super::canny::Edgel;
 use mesh::{PinholeCamera, StereoCalibration};
 use nalgebra::{Matrix3, Point3, Rotation3, Vector3};
 
@@ -140,9 +140,14 @@ fn apply(h: &Matrix3<f64>, x: f64, y: f64) -> (f64, f64) {
 pub(crate) mod tests {
     use super::*;
 
+    /// A 512x512 camera of 1000 px focal length at `eye`, looking at the world's origin, `z` up.
+    pub(crate) fn camera_at(eye: Point3<f64>) -> PinholeCamera {
+        PinholeCamera::looking_at((512, 512), 1000.0, [255.5, 255.5], eye, Point3::origin(), Vector3::z())
+    }
+
     /// The default world's rig: 0.2 m baseline, 0.9 m from the origin, looking down 40 deg.
     pub(crate) fn verged_pair() -> StereoCalibration {
-        let cam = |x: f64| crate::fixtures::camera_at(Point3::new(x, -0.6894, 0.5785));
+        let cam = |x: f64| camera_at(Point3::new(x, -0.6894, 0.5785));
         StereoCalibration { left: cam(-0.1), right: cam(0.1) }
     }
 

@@ -5,8 +5,8 @@
 //! found first, corners last); each piece is then fitted by orthogonal regression, trimmed of
 //! end edgels that leave the fit (corner blur), and kept if long enough.
 
-use crate::canny::Edgel;
-use crate::strings::EdgeString;
+use super::canny::Edgel;
+use super::strings::EdgeString;
 use serde::{Deserialize, Serialize};
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

@@ -1,5 +1,6 @@
 //! `marvin edges`: Canny and edge strings on any grey image.
 
+use super::output::emit;
 use anyhow::Context;
 use image::{Rgb, RgbImage};
 use serde::Serialize;
@@ -41,10 +42,10 @@ pub fn run(image: &Path, sigma: f32, json: bool, out: Option<&Path>) -> anyhow::
             edgels: &map.edgels,
             strings: strings.iter().map(|s| s.edgels.as_slice()).collect(),
         };
-        crate::emit(&serde_json::to_string(&doc)?)?;
+        emit(&serde_json::to_string(&doc)?)?;
     } else {
         let in_strings: usize = strings.iter().map(|s| s.edgels.len()).sum();
-        crate::emit(&format!(
+        emit(&format!(
             "{}: {} edgels, {} strings of >= {MIN_STRING} edgels holding {in_strings}",
             image.display(),
             map.edgels.len(),

@@ -1,10 +1,12 @@
 //! The vision front end on one stereo pair: what `marvin stereo` and `marvin eval vision` run.
 
-use crate::lines2d::{Line2, Lines2dParams, fit_lines};
-use crate::lines3d::{Line3, Lines3dParams, complete_flat_lines, fit_lines3d};
-use crate::pmf::{Match, PmfParams, pmf};
-use crate::rectify::{Rectification, Side};
-use crate::{CannyParams, EdgeMap, EdgeString, Edgel, GreyImage, link_strings};
+use super::canny::{CannyParams, EdgeMap, Edgel};
+use super::lines2d::{Line2, Lines2dParams, fit_lines};
+use super::lines3d::{Line3, Lines3dParams, complete_flat_lines, fit_lines3d};
+use super::pmf::{Match, PmfParams, pmf};
+use super::rectify::{Rectification, Side};
+use super::strings::{EdgeString, link_strings};
+use crate::image::GreyImage;
 use mesh::StereoCalibration;
 use std::time::Instant;
 
@@ -32,7 +34,7 @@ pub struct FrontEnd {
 thread_local! {
     /// Canny's buffers, kept per worker thread from frame to frame as MARVIN's resident tasks kept
     /// theirs: fresh megabytes per image cost more in page faults than Canny itself.
-    static CANNY: std::cell::RefCell<crate::canny::CannyWorkspace> = Default::default();
+    static CANNY: std::cell::RefCell<super::canny::CannyWorkspace> = Default::default();
 }
 
 fn canny_reusing(img: &GreyImage, params: &CannyParams) -> EdgeMap {

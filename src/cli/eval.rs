@@ -1,5 +1,6 @@
 //! `marvin eval`: seeded scenes run through the pipeline and compared with ground truth.
 
+use super::output::emit;
 use clap::Subcommand;
 use marvin::eval::{DisparityStats, LineStats, disparity_stats, line_stats};
 use marvin::truth::TruthScene;
@@ -71,7 +72,7 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
     let (world, scenes, seed, slices, json) = match target {
         EvalTarget::Vision { world, scenes, seed, slices, json } => (world, scenes, seed, slices, json),
         EvalTarget::Locate { world, scenes, seed, json } => return run_locate(&world, scenes, seed, json),
-        EvalTarget::Pick { world, trials, seed, json } => return crate::eval_pick::run(&world, trials, seed, json),
+        EvalTarget::Pick { world, trials, seed, json } => return super::eval_pick::run(&world, trials, seed, json),
     };
     let scn = Scenario::load(&world)?;
     let calib = sim::rig::calibration(&scn.world.cameras);
@@ -92,7 +93,7 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
         let right = vision::GreyImage::new(r.width, r.height, r.image).expect("a rendered frame is whole");
         let params = vision::CannyParams::default();
         let fe = if slices > 1 {
-            vision::slices::run_sliced(&left, &right, &calib, &params, slices)
+            vision::front_end::slices::run_sliced(&left, &right, &calib, &params, slices)
         } else {
             marvin::front_end::run(&left, &right, &calib, &params)
         };
@@ -133,7 +134,7 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
         "lines3d_per_scene": lines.endpoint_err_mm.len() as f64 / 2.0 / scenes.max(1) as f64,
         "timings_ms": medians,
     });
-    if json { crate::emit(&report.to_string()) } else { crate::emit(&serde_json::to_string_pretty(&report)?) }
+    if json { emit(&report.to_string()) } else { emit(&serde_json::to_string_pretty(&report)?) }
 }
 
 /// A seeded scene taken through rendering and the (sliced) front end.
@@ -150,7 +151,7 @@ pub fn run_pipeline(scn: &Scenario, seed: u64) -> Pipeline {
     let (l, r) = render_stereo(&rs, &calib, scn.world.render.noise_sigma, seed);
     let left = vision::GreyImage::new(l.width, l.height, l.image.clone()).expect("a rendered frame is whole");
     let right = vision::GreyImage::new(r.width, r.height, r.image).expect("a rendered frame is whole");
-    let front_end = vision::slices::run_sliced(&left, &right, &calib, &vision::CannyParams::default(), 8);
+    let front_end = vision::front_end::slices::run_sliced(&left, &right, &calib, &vision::CannyParams::default(), 8);
     Pipeline { scene, left: l, front_end }
 }
 
@@ -180,7 +181,7 @@ fn run_locate(world: &std::path::Path, scenes: u64, seed: u64, json: bool) -> an
         let lines: Vec<vision::matcher::Seg> =
             p.front_end.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
         let clock = std::time::Instant::now();
-        let evidence = vision::verify::ImageEvidence::of(&calib.left, &p.front_end);
+        let evidence = vision::matcher::verify::ImageEvidence::of(&calib.left, &p.front_end);
         let located = vision::matcher::locate_all(&models, &lines, &params, Some(&evidence));
         match_ms.push(clock.elapsed().as_secs_f64() * 1e3);
         let stats = locate_stats(&located, &p.scene, &scn.library, &calib, &p.left.depth, &symmetry);
@@ -204,5 +205,5 @@ fn run_locate(world: &std::path::Path, scenes: u64, seed: u64, json: bool) -> an
         "match_ms_median": quantile(&match_ms, 0.5),
         "located_by_model": total.by_model.iter().map(|(m, [e, l])| (m.clone(), *l as f64 / (*e).max(1) as f64)).collect::<BTreeMap<_, _>>(),
     });
-    if json { crate::emit(&report.to_string()) } else { crate::emit(&serde_json::to_string_pretty(&report)?) }
+    if json { emit(&report.to_string()) } else { emit(&serde_json::to_string_pretty(&report)?) }
 }

@@ -1,5 +1,6 @@
 //! `marvin eval pick`: seeded physical picks, in clutter and one object at a time.
 
+use super::output::emit;
 use marvin::pick::{PickOutcome, clear_scene, load, pickable_models, single_object_scenario};
 use rayon::prelude::*;
 use sim::Scene;
@@ -62,9 +63,9 @@ pub fn run(world: &Path, trials: u64, seed: u64, json: bool) -> anyhow::Result<(
         "wall_s": wall_s,
     });
     if json {
-        return crate::emit(&serde_json::to_string_pretty(&report)?);
+        return emit(&serde_json::to_string_pretty(&report)?);
     }
-    crate::emit(&format!(
+    emit(&format!(
         "clutter: {:.3} of {} picks placed; single objects: {:.3} of {} placed",
         rate(&all_clutter),
         clutter.len(),
@@ -72,8 +73,8 @@ pub fn run(world: &Path, trials: u64, seed: u64, json: bool) -> anyhow::Result<(
         single.len()
     ))?;
     for (m, r) in &by_model {
-        crate::emit(&format!("  {m:<10} {r:.3}"))?;
+        emit(&format!("  {m:<10} {r:.3}"))?;
     }
-    crate::emit(&format!("failures: {failures:?}"))?;
-    crate::emit(&format!("{simulated_s:.0} s simulated in {wall_s:.0} s"))
+    emit(&format!("failures: {failures:?}"))?;
+    emit(&format!("{simulated_s:.0} s simulated in {wall_s:.0} s"))
 }

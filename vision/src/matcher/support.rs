@@ -2,10 +2,10 @@
 //! model's lines where the pose puts them. The matcher ranks every hypothesis by it, so how
 //! it is counted is most of the matcher's time: only the free lines whose midpoints lie near
 //! the model are looked at, and of each only against the model lines its ends lie near (a
-//! grid over the model, `LineGrid`).
+//! grid over the model, `model::LineGrid`).
 
-use crate::matcher::{MatchParams, MatcherModel, Seg};
-use nalgebra::{Isometry3, Point3, Vector3};
+use super::model::{LineGrid, MatchParams, MatcherModel, Seg};
+use nalgebra::{Isometry3, Point3};
 
 /// How a model line and a scene line (in one frame) agree: the length of the scene line lying along
 /// the model segment (0 when they are not close and parallel).
@@ -174,97 +174,6 @@ impl NearLines {
     }
 }
 
-/// Which model lines a scene line can lie along, by where its ends fall in the model's frame:
-/// a grid of cubic cells over the model's bounding sphere (and a margin), each with a bit per
-/// model line whose infinite line passes near enough the cell that a point in it may lie
-/// within the support distance. A scene line can support only the lines of both its ends'
-/// cells; counting support over those alone instead of every model line near the pose made
-/// the support count (most of the matcher's time) several times cheaper, with the same result.
-#[derive(Clone)]
-pub(crate) struct LineGrid {
-    support_distance: f64,
-    origin: Point3<f64>,
-    cell: f64,
-    cells: [usize; 3],
-    /// Bits per cell, `words` words each.
-    words: usize,
-    bits: Vec<u64>,
-    /// Every line's bit.
-    all: Vec<u64>,
-}
-
-/// Cells are this many support distances wide.
-const GRID_CELL: f64 = 2.0;
-/// The grid reaches this far (metres) beyond the model's bounding sphere: scene lines whose
-/// midpoints fall within the sphere reach out of it by half their length.
-const GRID_MARGIN: f64 = 0.02;
-
-impl std::fmt::Debug for LineGrid {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "LineGrid({:?} cells of {} m)", self.cells, self.cell)
-    }
-}
-
-impl LineGrid {
-    pub(crate) fn new(model: &MatcherModel, support_distance: f64) -> LineGrid {
-        let (centre, radius) = model.sphere;
-        let half = radius + support_distance + GRID_MARGIN;
-        let cell = (GRID_CELL * support_distance).max(1e-4);
-        let n = ((2.0 * half / cell).ceil() as usize).max(1);
-        let origin = centre - Vector3::repeat(half);
-        let words = model.lines.len().div_ceil(64).max(1);
-        let mut bits = vec![0u64; n * n * n * words];
-        // A point of the cell lies within the support distance of a line only if its centre
-        // lies within that plus half the cell's diagonal.
-        let reach = support_distance + 0.5 * cell * 3f64.sqrt();
-        for (c, cell_bits) in bits.chunks_mut(words).enumerate() {
-            let index = [c % n, (c / n) % n, c / (n * n)];
-            let at = origin + Vector3::from_fn(|k, _| (index[k] as f64 + 0.5) * cell);
-            for (i, l) in model.lines.iter().enumerate() {
-                let w = at - l.a;
-                if (w - l.dir * w.dot(&l.dir)).norm_squared() <= reach * reach {
-                    cell_bits[i / 64] |= 1 << (i % 64);
-                }
-            }
-        }
-        let mut all = vec![0u64; words];
-        for i in 0..model.lines.len() {
-            all[i / 64] |= 1 << (i % 64);
-        }
-        LineGrid { support_distance, origin, cell, cells: [n; 3], words, bits, all }
-    }
-
-    /// The bits of the cell holding `x` (model frame), if the grid reaches it.
-    fn cell_bits(&self, x: &Point3<f64>) -> Option<&[u64]> {
-        let mut at = 0;
-        for k in (0..3).rev() {
-            // Truncation is the floor here, off the grid's negative side being ruled out first.
-            let f = (x[k] - self.origin[k]) / self.cell;
-            if !(0.0..self.cells[k] as f64).contains(&f) {
-                return None;
-            }
-            at = at * self.cells[k] + f as usize;
-        }
-        Some(&self.bits[at * self.words..(at + 1) * self.words])
-    }
-
-    /// The model lines a scene line with `ends` (model frame) may lie along: those of both
-    /// ends' cells (of either, where the other is off the grid; all, where both are or where
-    /// the ends are not given).
-    pub(crate) fn lines_along(&self, ends: Option<&(Point3<f64>, Point3<f64>)>) -> impl Iterator<Item = usize> + '_ {
-        let (ba, bb) = ends.map_or((None, None), |(a, b)| (self.cell_bits(a), self.cell_bits(b)));
-        (0..self.words).flat_map(move |w| {
-            let word = match (ba, bb) {
-                (Some(x), Some(y)) => x[w] & y[w],
-                (Some(x), None) | (None, Some(x)) => x[w],
-                (None, None) => self.all[w],
-            };
-            std::iter::successors((word != 0).then_some(word), |v| Some(v & (v - 1)).filter(|v| *v != 0))
-                .map(move |v| w * 64 + v.trailing_zeros() as usize)
-        })
-    }
-}
-
 /// The support of a pose alone, as [`support`] measures it, without the correspondences, if
 /// it exceeds `floor`: the inner loop of hypothesis ranking, so the free lines come laid out
 /// once per search and the working space is reused.
@@ -289,7 +198,7 @@ pub(crate) fn support_score(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::matcher::tests::Lcg;
+    use crate::matcher::fixtures::Lcg;
 
     /// The grid of lines near each cell never rules out a model line that a scene line lies
     /// along: over random segments round and along every model, what it leaves out has no

@@ -8,8 +8,8 @@
 //! image check then rejects the right object. The image alone fixes depth poorly, which the 3D
 //! lines supply.
 
-use crate::matcher::{MatcherModel, Seg};
-use crate::verify::{ALONG_RAD, ImageEvidence};
+use super::model::{MatcherModel, Seg};
+use super::verify::{ALONG_RAD, ImageEvidence};
 use nalgebra::{
     Isometry3, Matrix2x3, Matrix6, Point2, Point3, Translation3, UnitQuaternion, Vector2, Vector3, Vector6,
 };
@@ -185,14 +185,14 @@ mod tests {
     /// within a fraction of a millimetre and degree of where its edgels are.
     #[test]
     fn a_pose_a_few_degrees_off_is_pulled_onto_its_edgels() {
-        let model = crate::fixtures::model("widget");
-        let cam = crate::fixtures::camera_at(Point3::new(0.0, -0.5, 0.6));
+        let model = crate::matcher::fixtures::model("widget");
+        let cam = crate::matcher::fixtures::camera_at(Point3::new(0.0, -0.5, 0.6));
         let truth = cam.cam_from_world()
             * Isometry3::from_parts(
                 Translation3::new(0.01, 0.02, 0.02),
                 UnitQuaternion::from_euler_angles(0.0, 0.0, 0.7),
             );
-        let (edges, _) = crate::verify::drawn::model_edges(&model, &truth, &cam);
+        let (edges, _) = crate::matcher::verify::drawn::model_edges(&model, &truth, &cam);
         let ev = ImageEvidence::new(&cam, &edges, Vec::new());
         // One 3D line: the longest camera-facing edge, as stereo would give it.
         let k = (0..model.lines.len())

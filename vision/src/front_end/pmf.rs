@@ -14,8 +14,8 @@
 //! 4. Ordering along each raster, then figural continuity along left edge strings, prune what
 //!    the local choices let through.
 
-use crate::canny::Edgel;
-use crate::strings::EdgeString;
+use super::canny::Edgel;
+use super::strings::EdgeString;
 use serde::{Deserialize, Serialize};
 
 /// PMF's parameters; they travel to the workers in a control message.

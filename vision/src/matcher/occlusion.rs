@@ -4,7 +4,7 @@
 //! located poses; a wireframe sample is hidden when the line of sight to it crosses one of them
 //! well in front of it.
 
-use crate::matcher::MatcherModel;
+use super::model::MatcherModel;
 use nalgebra::{Isometry3, Point3};
 
 /// A model's surface at a pose, in the `cam` frame, with a sphere holding it.
@@ -56,7 +56,7 @@ mod tests {
     /// it does hide.
     #[test]
     fn a_block_hides_what_lies_behind_it() {
-        let model = crate::fixtures::model("block");
+        let model = crate::matcher::fixtures::model("block");
         let pose =
             Isometry3::from_parts(Translation3::new(0.0, 0.0, 0.8), UnitQuaternion::from_euler_angles(0.3, 0.2, 0.1));
         let solid = Solid::new(&model, &pose);

@@ -1,7 +1,8 @@
 //! `marvin locate`: render a scene, run the front end and the matcher, and say how each report
 //! compares with the truth.
 
-use crate::eval_cmd::{matcher_models, run_pipeline};
+use super::eval::{matcher_models, run_pipeline};
+use super::output::emit;
 use anyhow::{Context, bail};
 use image::{Rgb, RgbImage};
 use marvin::eval::{CORRECT_POS_M, CORRECT_ROT_DEG, pose_error, symmetries, visible_fraction};
@@ -33,7 +34,7 @@ pub fn run(
     let p = run_pipeline(&scn, seed);
     let lines: Vec<Seg> = p.front_end.lines3d.iter().map(|l| Seg::new(l.start(), l.end())).collect();
     let sought = matcher_models(&scn.library, models.as_deref());
-    let evidence = vision::verify::ImageEvidence::of(&calib.left, &p.front_end);
+    let evidence = vision::matcher::verify::ImageEvidence::of(&calib.left, &p.front_end);
     let located = locate_all(&sought, &lines, &MatchParams::default(), Some(&evidence));
     // Compare with the truth (evaluation only).
     let truths: Vec<(String, Isometry3<f64>)> =
@@ -87,15 +88,15 @@ pub fn run(
                 "visible_fraction": visible_fraction(&scn.library.models[name], pose, &calib.left, &p.left.depth),
                 "support_fraction_at_truth": support,
                 "supported_lines_at_truth": lines_seen,
-                "image_support_at_truth": vision::verify::image_support(model, pose, &evidence),
+                "image_support_at_truth": vision::matcher::verify::image_support(model, pose, &evidence),
             }))
         })
         .collect();
     if json {
-        crate::emit(&serde_json::json!({ "seed": seed, "located": rows, "missed": missed }).to_string())?;
+        emit(&serde_json::json!({ "seed": seed, "located": rows, "missed": missed }).to_string())?;
     } else {
         for r in &rows {
-            crate::emit(&format!(
+            emit(&format!(
                 "{:10} support {:.2}  {}",
                 r["model"].as_str().unwrap_or("?"),
                 r["support_fraction"].as_f64().unwrap_or(0.0),
@@ -116,9 +117,9 @@ pub fn run(
             ))?;
         }
         let names: Vec<&str> = missed.iter().filter_map(|m| m["model"].as_str()).collect();
-        crate::emit(&format!("missed: {}", if names.is_empty() { "none".to_string() } else { names.join(", ") }))?;
+        emit(&format!("missed: {}", if names.is_empty() { "none".to_string() } else { names.join(", ") }))?;
         for m in &missed {
-            crate::emit(&format!(
+            emit(&format!(
                 "  {} (object {}): {:.0}% of its edges visible; at its true pose 3D support {:.2} on {} lines, image {:.2}",
                 m["model"].as_str().unwrap_or("?"),
                 m["object"],

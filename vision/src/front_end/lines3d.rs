@@ -3,10 +3,10 @@
 //! length, projected through the calibration at the line's ends, gives a 3D segment in the
 //! `cam` frame with the depth uncertainty of each end.
 
-use crate::lines2d::Line2;
-use crate::pmf::Match;
-use crate::rectify::Rectification;
-use crate::strings::EdgeString;
+use super::lines2d::Line2;
+use super::pmf::Match;
+use super::rectify::Rectification;
+use super::strings::EdgeString;
 use nalgebra::Point3;
 use serde::{Deserialize, Serialize};
 
@@ -78,7 +78,7 @@ fn linear_fit(points: &[(f64, f64)]) -> Option<(f64, f64, f64, f64, f64)> {
 pub fn fit_lines3d(
     lines: &[Line2],
     strings: &[EdgeString],
-    left_rect: &[crate::canny::Edgel],
+    left_rect: &[super::canny::Edgel],
     matches: &[Match],
     rect: &Rectification,
     p: &Lines3dParams,

@@ -3,7 +3,7 @@
 //! neighbour (4-connected before diagonal, then the one straightest ahead), and stops where no
 //! unused neighbour is left; closed contours become strings that start anywhere on them.
 
-use crate::canny::{EdgeMap, neighbours};
+use super::canny::{EdgeMap, neighbours};
 
 /// An ordered chain of edgels (indices into [`EdgeMap::edgels`]).
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
@@ -71,7 +71,7 @@ fn walk_from(map: &EdgeMap, start: u32, used: &mut [bool], mut heading: Option<(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::canny::{CannyParams, canny};
+    use crate::front_end::canny::{CannyParams, canny};
     use crate::image::GreyImage;
 
     fn square_image() -> GreyImage {

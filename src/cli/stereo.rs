@@ -1,6 +1,7 @@
 //! `marvin stereo`: the vision front end on any image pair, rendered or real.
 
-use crate::edges_cmd::load_grey;
+use super::edges::load_grey;
+use super::output::emit;
 use anyhow::{Context, bail};
 use image::{Rgb, RgbImage};
 use marvin::front_end::{FrontEnd, Geometry, run_with};
@@ -60,7 +61,7 @@ pub fn run(
     }
     let fe = match geometry {
         Geometry::Calibrated(calib) if slices > 1 => {
-            vision::slices::run_sliced(&l, &r, calib, &CannyParams::default(), slices)
+            vision::front_end::slices::run_sliced(&l, &r, calib, &CannyParams::default(), slices)
         }
         _ => run_with(&l, &r, geometry, &CannyParams::default()),
     };
@@ -87,9 +88,9 @@ pub fn run(
             "lines3d": lines3d,
             "timings_ms": timings,
         });
-        crate::emit(&doc.to_string())?;
+        emit(&doc.to_string())?;
     } else {
-        crate::emit(&format!(
+        emit(&format!(
             "{} left and {} right edgels, {} matches, {} 2D lines, {} 3D lines ({})",
             fe.left.edgels.len(),
             fe.right.edgels.len(),
@@ -104,7 +105,7 @@ pub fn run(
         let path = dir.join("matches.png");
         draw_matches(&l, &fe).save(&path).with_context(|| format!("writing {}", path.display()))?;
         let path = dir.join("edges.png");
-        crate::edges_cmd::draw(&l, &fe.left_strings, &fe.left.edgels)
+        super::edges::draw(&l, &fe.left_strings, &fe.left.edgels)
             .save(&path)
             .with_context(|| format!("writing {}", path.display()))?;
     }

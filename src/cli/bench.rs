@@ -1,5 +1,6 @@
 //! `marvin bench`: medians of repeated runs. Never a pass/fail test: the machines are shared.
 
+use super::output::emit;
 use clap::{Args, Subcommand};
 use sim::render::{Light, RenderScene, render_stereo};
 use sim::{Scenario, Scene};
@@ -85,10 +86,10 @@ fn report(args: &BenchArgs, results: &[(&str, f64)], what: &str) -> anyhow::Resu
     if args.json {
         let map: serde_json::Map<String, serde_json::Value> =
             results.iter().map(|(k, v)| (k.to_string(), serde_json::json!({ "median_ms": v }))).collect();
-        crate::emit(&serde_json::Value::Object(map).to_string())
+        emit(&serde_json::Value::Object(map).to_string())
     } else {
         for (k, v) in results {
-            crate::emit(&format!("{k}: {v:.3} ms (median of {}; {what})", args.runs))?;
+            emit(&format!("{k}: {v:.3} ms (median of {}; {what})", args.runs))?;
         }
         Ok(())
     }
@@ -149,9 +150,9 @@ fn physics(args: &PhysicsArgs) -> anyhow::Result<()> {
             "placed": placed,
             "picks": picks,
         }});
-        return crate::emit(&v.to_string());
+        return emit(&v.to_string());
     }
-    crate::emit(&format!(
+    emit(&format!(
         "physics: realtime factor {median:.1} (median of {} scenes of {} objects cleared; {placed}/{picks} placed, {simulated:.0} s simulated in {wall:.1} s)",
         factors.len(),
         scene_size(&scn)
@@ -192,7 +193,7 @@ fn vision(args: &BenchArgs) -> anyhow::Result<()> {
     let right = vision::GreyImage::new(r.width, r.height, r.image).expect("a rendered frame is whole");
     let params = vision::CannyParams::default();
     // Buffers reused from run to run, as a pipeline seeing frame after frame does.
-    let (mut ws, mut edges) = (vision::canny::CannyWorkspace::default(), vision::EdgeMap::default());
+    let (mut ws, mut edges) = (vision::front_end::canny::CannyWorkspace::default(), vision::EdgeMap::default());
     let canny = median_ms(args.runs, || {
         ws.run(&left, &params, &mut edges);
         std::hint::black_box(&edges);
@@ -203,7 +204,7 @@ fn vision(args: &BenchArgs) -> anyhow::Result<()> {
     });
     let mut sliced_stages = StageTimes::default();
     let sliced = median_ms(args.runs, || {
-        sliced_stages.add(&vision::slices::run_sliced(&left, &right, &s.calib, &params, 8).timings_ms);
+        sliced_stages.add(&vision::front_end::slices::run_sliced(&left, &right, &s.calib, &params, 8).timings_ms);
     });
     let mut results = vec![("canny", canny)];
     for name in ["strings", "rectify", "pmf", "geom2d", "geom3d"] {
@@ -226,23 +227,23 @@ fn vision(args: &BenchArgs) -> anyhow::Result<()> {
     // The matcher: every library model but the flag on the front end's 3D lines, with the
     // left image's edgels for verification; and the whole cycle, stereo pair in, located
     // objects out.
-    let models = crate::eval_cmd::matcher_models(&s.scn.library, None);
+    let models = super::eval::matcher_models(&s.scn.library, None);
     let mp = vision::matcher::MatchParams::default();
-    let fe = vision::slices::run_sliced(&left, &right, &s.calib, &params, 8);
+    let fe = vision::front_end::slices::run_sliced(&left, &right, &s.calib, &params, 8);
     let lines: Vec<vision::matcher::Seg> =
         fe.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
-    let evidence = vision::verify::ImageEvidence::of(&s.calib.left, &fe);
+    let evidence = vision::matcher::verify::ImageEvidence::of(&s.calib.left, &fe);
     let image_evidence = median_ms(args.runs, || {
-        std::hint::black_box(vision::verify::ImageEvidence::of(&s.calib.left, &fe));
+        std::hint::black_box(vision::matcher::verify::ImageEvidence::of(&s.calib.left, &fe));
     });
     let matching = median_ms(args.runs, || {
         std::hint::black_box(vision::matcher::locate_all(&models, &lines, &mp, Some(&evidence)));
     });
     let cycle = median_ms(args.runs, || {
-        let fe = vision::slices::run_sliced(&left, &right, &s.calib, &params, 8);
+        let fe = vision::front_end::slices::run_sliced(&left, &right, &s.calib, &params, 8);
         let lines: Vec<vision::matcher::Seg> =
             fe.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
-        let evidence = vision::verify::ImageEvidence::of(&s.calib.left, &fe);
+        let evidence = vision::matcher::verify::ImageEvidence::of(&s.calib.left, &fe);
         std::hint::black_box(vision::matcher::locate_all(&models, &lines, &mp, Some(&evidence)));
     });
     results.push(("image_evidence", image_evidence));

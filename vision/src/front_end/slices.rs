@@ -14,14 +14,14 @@
 //! of the left slice: the verged cameras' warp shifts and tilts rows, so it is taller than the
 //! left slice and offset from it.
 
-use crate::canny::{CannyParams, CannyWorkspace, EdgeMap, Edgel};
-use crate::front_end::{FrontEnd, MIN_STRING, Stopwatch, WORKSPACE_DEPTH_M, disparity_range};
+use super::canny::{CannyParams, CannyWorkspace, EdgeMap, Edgel};
+use super::lines2d::{Line2, Lines2dParams, fit_lines};
+use super::lines3d::{Line3, Lines3dParams, complete_flat_lines, fit_lines3d};
+use super::pipeline::{FrontEnd, MIN_STRING, Stopwatch, WORKSPACE_DEPTH_M, disparity_range};
+use super::pmf::{Match, PmfParams, pmf};
+use super::rectify::{Rectification, Side};
+use super::strings::{EdgeString, link_strings};
 use crate::image::GreyImage;
-use crate::lines2d::{Line2, Lines2dParams, fit_lines};
-use crate::lines3d::{Line3, Lines3dParams, complete_flat_lines, fit_lines3d};
-use crate::pmf::{Match, PmfParams, pmf};
-use crate::rectify::{Rectification, Side};
-use crate::strings::{EdgeString, link_strings};
 use mesh::StereoCalibration;
 use rayon::prelude::*;
 use std::ops::Range;
@@ -234,7 +234,7 @@ pub fn join(slices: &[SliceResult], rect: Rectification, width: usize, height: u
         }
         fe.matches.extend(s.matches.iter().filter_map(|m| Some(Match { left: ids[m.left as usize]?, ..*m })));
         for (e, &p) in s.right.iter().zip(&s.right_pixel) {
-            if fe.right.at_pixel[p] == crate::canny::NO_EDGEL {
+            if fe.right.at_pixel[p] == super::canny::NO_EDGEL {
                 fe.right.push(p, *e);
             }
         }
@@ -304,7 +304,7 @@ fn owns(s: &SliceResult, i: usize) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::rectify::tests::verged_pair;
+    use crate::front_end::rectify::tests::verged_pair;
     use nalgebra::Point3;
 
     #[test]

@@ -1,5 +1,6 @@
 //! `marvin pick`: settle a scene, pick one object from its true pose, report what happened.
 
+use super::output::emit;
 use marvin::pick::{PickCell, PickOutcome, clear_scene, load, single_object_scenario};
 use sim::Scene;
 use std::path::Path;
@@ -32,13 +33,13 @@ pub fn run(
     if json {
         let mut v = serde_json::json!({ "picks": outcomes, "wall_s": wall_s });
         v["placed"] = serde_json::json!(outcomes.iter().filter(|o| o.placed).count());
-        return crate::emit(&serde_json::to_string_pretty(&v)?);
+        return emit(&serde_json::to_string_pretty(&v)?);
     }
     let simulated: f64 = outcomes.iter().map(|o| o.simulated_s).sum();
     for out in &outcomes {
         report(out)?;
     }
-    crate::emit(&format!(
+    emit(&format!(
         "{} of {} placed; {simulated:.2} s simulated in {wall_s:.2} s ({:.1}x real time)",
         outcomes.iter().filter(|o| o.placed).count(),
         outcomes.len(),
@@ -47,14 +48,14 @@ pub fn run(
 }
 
 fn report(out: &PickOutcome) -> anyhow::Result<()> {
-    crate::emit(&format!("object {} ({}): {}", out.object, out.model, out.result))?;
+    emit(&format!("object {} ({}): {}", out.object, out.model, out.result))?;
     if let Some(d) = &out.detail {
-        crate::emit(&format!("  {d}"))?;
+        emit(&format!("  {d}"))?;
     }
     if let Some(g) = out.grasp {
-        crate::emit(&format!("  grasp {g}, fingers closed to {:.1} mm", out.closed_opening_mm.unwrap_or(0.0)))?;
+        emit(&format!("  grasp {g}, fingers closed to {:.1} mm", out.closed_opening_mm.unwrap_or(0.0)))?;
     }
-    crate::emit(&format!(
+    emit(&format!(
         "  {:.2} s simulated, worst joint tracking error {:.2e} ({})",
         out.simulated_s,
         out.max_tracking_error,

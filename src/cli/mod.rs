@@ -1,0 +1,20 @@
+//! The command line's verbs, one file each; `main.rs` parses the arguments and calls them.
+//!
+//! - [`render`]: settle a world and render both cameras.
+//! - [`edges`]: Canny and edge strings of any image.
+//! - [`stereo`]: the front end on any stereo pair.
+//! - [`locate`]: render, front end and matcher on one scene, against the truth.
+//! - [`pick`]: physical picks with the simulated arm.
+//! - [`eval`], [`eval_pick`]: the pipeline over seeded scenes, against the truth.
+//! - [`bench`]: medians of how fast things run.
+//! - [`output`]: printing that tolerates a reader going away.
+
+pub mod bench;
+pub mod edges;
+pub mod eval;
+pub mod eval_pick;
+pub mod locate;
+pub mod output;
+pub mod pick;
+pub mod render;
+pub mod stereo;

@@ -1,0 +1,24 @@
+//! The front end: the first of MARVIN's two phases, scene geometry from stereo. A stereo pair
+//! in, the 3D lines of the scene (and what led to them) out, as TINA computed them.
+//!
+//! - [`canny`](mod@canny): Canny edges (sigma 1, separable Gaussian) located to sub-pixel acuity.
+//! - [`strings`]: edgels linked into ordered 8-connected edge strings.
+//! - [`rectify`]: edge locations mapped into a parallel-camera geometry (rows are epipolars).
+//! - [`pmf`]: PMF stereo matching of rectified edgels.
+//! - [`lines2d`]: strings cut into straight lines by recursive fit and segment.
+//! - [`lines3d`]: disparity fitted along each 2D line, its ends triangulated into 3D segments.
+//! - [`pipeline`]: the stages above run in order on one whole stereo pair ([`FrontEnd`]).
+//! - [`slices`]: the same cut into 8 horizontal slice pairs run in parallel, and the Joiner.
+//!
+//! Nothing here knows of the matcher: it takes the front end's output as it is.
+
+pub mod canny;
+pub mod lines2d;
+pub mod lines3d;
+pub mod pipeline;
+pub mod pmf;
+pub mod rectify;
+pub mod slices;
+pub mod strings;
+
+pub use pipeline::{FrontEnd, Geometry, MIN_STRING, Stopwatch, WORKSPACE_DEPTH_M, disparity_range, run, run_with};

@@ -1,0 +1,24 @@
+//! What the matcher's unit tests set up alike.
+
+use super::model::MatcherModel;
+use nalgebra::Vector3;
+
+pub(crate) use crate::front_end::rectify::tests::camera_at;
+
+/// A library model as the matcher holds it.
+pub(crate) fn model(name: &str) -> MatcherModel {
+    let lib = mesh::Library::load_default().unwrap();
+    MatcherModel::from_model(lib.get(name).unwrap_or_else(|| panic!("no model `{name}` in the library")))
+}
+
+/// A tiny deterministic generator, so the test needs no RNG crate.
+pub(crate) struct Lcg(pub u64);
+impl Lcg {
+    pub(crate) fn next(&mut self) -> f64 {
+        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
+    pub(crate) fn noise(&mut self, s: f64) -> Vector3<f64> {
+        Vector3::new(self.next() - 0.5, self.next() - 0.5, self.next() - 0.5) * 2.0 * s
+    }
+}

@@ -1,0 +1,348 @@
+//! The model as the matcher holds it, and what every matcher stage shares: straight 3D
+//! segments and their pairwise relations, the model's wireframe with the faces along each line,
+//! its solid and grasps, the tables derived from it once (its characteristic views' focus
+//! pairs, the grid of lines near each cell), the matcher's parameters, and a located object.
+
+use nalgebra::{Isometry3, Point3, Vector3};
+use serde::{Deserialize, Serialize};
+
+/// A straight 3D segment with its unit direction and length.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Seg {
+    pub a: Point3<f64>,
+    pub b: Point3<f64>,
+    pub dir: Vector3<f64>,
+    pub len: f64,
+}
+
+impl Seg {
+    pub fn new(a: Point3<f64>, b: Point3<f64>) -> Seg {
+        let d = b - a;
+        let len = d.norm();
+        Seg { a, b, dir: d / len.max(1e-12), len }
+    }
+
+    pub fn transformed(&self, pose: &Isometry3<f64>) -> Seg {
+        Seg::new(pose * self.a, pose * self.b)
+    }
+}
+
+/// A model as the matcher sees it.
+#[derive(Debug, Clone)]
+pub struct MatcherModel {
+    pub name: String,
+    pub lines: Vec<Seg>,
+    /// Outward normals of the faces meeting along each line: the line can be seen only from
+    /// where one of them faces the camera.
+    pub faces: Vec<Vec<Vector3<f64>>>,
+    /// The solid's surface, triangle by triangle (model frame).
+    pub triangles: Vec<[Point3<f64>; 3]>,
+    /// Points filling the solid, on a grid (model frame): what two reports may not share.
+    pub(crate) interior: Vec<Point3<f64>>,
+    /// The solid's bounding box (model frame): a point outside it is not inside the solid.
+    pub(crate) bounds: (Point3<f64>, Point3<f64>),
+    /// Grasp positions: `model_from_gripper` and jaw opening (metres).
+    pub grasps: Vec<(Isometry3<f64>, f64)>,
+    pub total_length: f64,
+    /// Centre and radius of a sphere holding the wireframe.
+    pub(crate) sphere: (Point3<f64>, f64),
+    /// The lines' indices, longest first (the order support is counted in).
+    pub(crate) longest_first: Vec<usize>,
+    /// The characteristic views' focus pairs, tabled on the first search (they depend only on
+    /// the model and the number of focus lines, which are kept with them).
+    pub(crate) views: std::sync::OnceLock<(usize, Vec<Vec<FocusPair>>)>,
+    /// The lines near each cell of a grid over the model, laid out on the first search for its
+    /// support distance (kept with it).
+    pub(crate) grid: std::sync::OnceLock<LineGrid>,
+}
+
+impl MatcherModel {
+    pub fn from_model(m: &mesh::Model) -> MatcherModel {
+        let lines: Vec<Seg> = m.wireframe.iter().map(|s| Seg::new(s.a, s.b)).collect();
+        let faces = lines.iter().map(|l| faces_along(&m.mesh, l)).collect();
+        let n = (2 * lines.len()).max(1) as f64;
+        let centre = Point3::from(lines.iter().map(|l| l.a.coords + l.b.coords).sum::<Vector3<f64>>() / n);
+        let radius = lines.iter().flat_map(|l| [l.a, l.b]).map(|p| (p - centre).norm()).fold(0.0, f64::max);
+        let mut longest_first: Vec<usize> = (0..lines.len()).collect();
+        longest_first.sort_by(|&a, &b| lines[b].len.total_cmp(&lines[a].len));
+        let triangles: Vec<[Point3<f64>; 3]> = (0..m.mesh.triangles.len()).map(|t| m.mesh.corners(t)).collect();
+        let bounds = m.mesh.bounds().unwrap_or((Point3::origin(), Point3::origin()));
+        MatcherModel {
+            interior: interior_points(bounds, &triangles),
+            bounds,
+            sphere: (centre, radius),
+            longest_first,
+            name: m.name.clone(),
+            faces,
+            triangles,
+            total_length: lines.iter().map(|l| l.len).sum(),
+            grasps: m.grasps.iter().map(|g| (g.model_from_gripper, g.opening)).collect(),
+            lines,
+            views: std::sync::OnceLock::new(),
+            grid: std::sync::OnceLock::new(),
+        }
+    }
+}
+
+/// Spacing of the grid of points that fills a model (metres).
+pub(crate) const INTERIOR_STEP: f64 = 0.004;
+
+/// The points of a grid over a solid's bounds that lie inside its surface `triangles` (grid nodes fall half a step
+/// in from the bounds, off the planes of the faces).
+pub(crate) fn interior_points(
+    (lo, hi): (Point3<f64>, Point3<f64>),
+    triangles: &[[Point3<f64>; 3]],
+) -> Vec<Point3<f64>> {
+    let steps = (hi - lo).map(|e| (e / INTERIOR_STEP).ceil().max(1.0) as usize);
+    let mut out = Vec::new();
+    for i in 0..steps.x {
+        for j in 0..steps.y {
+            for k in 0..steps.z {
+                let p = lo + Vector3::new(i as f64 + 0.5, j as f64 + 0.5, k as f64 + 0.5) * INTERIOR_STEP;
+                if mesh::trimesh::encloses(triangles, &p) {
+                    out.push(p);
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Normals of the mesh faces that have an edge lying along `line`.
+pub(crate) fn faces_along(mesh: &mesh::TriMesh, line: &Seg) -> Vec<Vector3<f64>> {
+    let on_line = |p: &Point3<f64>| {
+        let w = p - line.a;
+        (w - line.dir * w.dot(&line.dir)).norm() < 1e-7
+    };
+    let mut normals: Vec<Vector3<f64>> = Vec::new();
+    for t in 0..mesh.triangles.len() {
+        let c = mesh.corners(t);
+        let along = (0..3).any(|k| on_line(&c[k]) && on_line(&c[(k + 1) % 3]));
+        let n = mesh.face_normal(t);
+        if along && normals.iter().all(|m| (m - n).norm() > 1e-6) {
+            normals.push(n);
+        }
+    }
+    normals
+}
+
+impl MatcherModel {
+    /// Centre (mean of the line ends) and radius of a sphere holding the wireframe.
+    pub fn bounding_sphere(&self) -> (Point3<f64>, f64) {
+        self.sphere
+    }
+
+    /// Where a scene line must lie to support the model at `pose`: both its ends within
+    /// `support_distance` of the wireframe, hence its midpoint within the returned distance of
+    /// the returned centre.
+    pub(crate) fn reach_at(&self, pose: &Isometry3<f64>, p: &MatchParams) -> (Point3<f64>, f64) {
+        (pose * self.sphere.0, self.sphere.1 + p.support_distance)
+    }
+
+    /// Whether line `k` has a face turned towards a camera at the origin, with the model at
+    /// `pose` (lines of no face always do): only such lines can be seen.
+    pub fn faces_camera(&self, k: usize, pose: &Isometry3<f64>) -> bool {
+        let (line, faces) = (&self.lines[k], &self.faces[k]);
+        let mid = pose * nalgebra::center(&line.a, &line.b);
+        faces.is_empty() || faces.iter().any(|n| (pose.rotation * n).dot(&-mid.coords) > 0.0)
+    }
+
+    /// Wireframe length a camera at the origin could see with the model at `pose` (lines with a
+    /// face towards the camera; other objects may still hide them).
+    pub fn visible_length(&self, pose: &Isometry3<f64>) -> f64 {
+        (0..self.lines.len()).filter(|&k| self.faces_camera(k, pose)).map(|k| self.lines[k].len).sum()
+    }
+}
+
+/// The matcher's tolerances and limits.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct MatchParams {
+    /// Pair angles must agree within this (radians).
+    pub angle_tolerance: f64,
+    /// Pair separations must agree within this (metres).
+    pub separation_tolerance: f64,
+    /// A scene line supports a model line when both its ends lie within this distance of it
+    /// (metres) and it runs within `angle_tolerance` of it.
+    pub support_distance: f64,
+    /// Scene lines shorter than this do not seed hypotheses (metres).
+    pub min_seed_length: f64,
+    /// How many of a characteristic view's longest lines serve as its focus features.
+    pub focus_lines: usize,
+    /// A located object must have this fraction of its wireframe length seen (measured: as a
+    /// fraction of the length its pose turns towards the camera instead, every threshold found
+    /// fewer objects for the same false reports)...
+    pub min_support_fraction: f64,
+    /// ...along at least this many model lines.
+    pub min_support_lines: usize,
+    /// Instances of one model sought at most.
+    pub max_instances: usize,
+    /// With the image at hand, a located object's camera-facing wireframe must run along
+    /// edgels for at least this fraction of its length.
+    pub min_image_support: f64,
+}
+
+impl Default for MatchParams {
+    fn default() -> Self {
+        MatchParams {
+            angle_tolerance: 0.1,
+            separation_tolerance: 0.004,
+            support_distance: 0.003,
+            min_seed_length: 0.012,
+            focus_lines: 8,
+            min_support_fraction: 0.15,
+            min_support_lines: 3,
+            max_instances: 3,
+            min_image_support: 0.5,
+        }
+    }
+}
+
+/// One located instance of a model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Located {
+    pub model: String,
+    pub cam_from_model: Isometry3<f64>,
+    /// Matched scene length, metres, and as a fraction of the model's wireframe length.
+    pub support: f64,
+    pub support_fraction: f64,
+    /// Indices of the scene lines that support it.
+    pub scene_lines: Vec<usize>,
+    /// Fraction of its camera-facing wireframe that runs along edgels in the left image (1 when
+    /// not verified in the image).
+    pub image_support: f64,
+    /// The model's grasp positions in the `cam` frame: `cam_from_gripper` and the jaw opening
+    /// (metres).
+    pub grasps: Vec<(Isometry3<f64>, f64)>,
+}
+
+/// Acute angle between two lines (directions up to sign).
+pub(crate) fn line_angle(u: &Vector3<f64>, v: &Vector3<f64>) -> f64 {
+    u.dot(v).abs().min(1.0).acos()
+}
+
+/// Distance between two infinite lines through `p` along `u` and `q` along `v`.
+pub(crate) fn separation(p: &Point3<f64>, u: &Vector3<f64>, q: &Point3<f64>, v: &Vector3<f64>) -> f64 {
+    let n = u.cross(v);
+    let s = n.norm();
+    if s < 1e-9 {
+        let w = q - p;
+        (w - u * w.dot(u)).norm()
+    } else {
+        (q - p).dot(&n).abs() / s
+    }
+}
+
+/// Where along each of two non-parallel lines (from `p` along `u`, from `q` along `v`) their
+/// closest approach falls.
+pub(crate) fn closest_params(p: &Point3<f64>, u: &Vector3<f64>, q: &Point3<f64>, v: &Vector3<f64>) -> (f64, f64) {
+    let w = p - q;
+    let (b, d, e) = (u.dot(v), u.dot(&w), v.dot(&w));
+    let den = 1.0 - b * b;
+    if den < 1e-12 {
+        return (0.0, 0.0);
+    }
+    ((b * e - d) / den, (e - b * d) / den)
+}
+
+/// A focus line and one of its feature group, with their relations: angle, separation, and
+/// where along each their closest approach falls.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct FocusPair {
+    pub(crate) focus: usize,
+    pub(crate) partner: usize,
+    pub(crate) angle: f64,
+    pub(crate) separation: f64,
+    pub(crate) at_focus: f64,
+    pub(crate) at_partner: f64,
+}
+
+/// Which model lines a scene line can lie along, by where its ends fall in the model's frame:
+/// a grid of cubic cells over the model's bounding sphere (and a margin), each with a bit per
+/// model line whose infinite line passes near enough the cell that a point in it may lie
+/// within the support distance. A scene line can support only the lines of both its ends'
+/// cells; counting support over those alone instead of every model line near the pose made
+/// the support count (most of the matcher's time) several times cheaper, with the same result.
+#[derive(Clone)]
+pub(crate) struct LineGrid {
+    pub(crate) support_distance: f64,
+    origin: Point3<f64>,
+    cell: f64,
+    cells: [usize; 3],
+    /// Bits per cell, `words` words each.
+    words: usize,
+    bits: Vec<u64>,
+    /// Every line's bit.
+    all: Vec<u64>,
+}
+
+/// Cells are this many support distances wide.
+const GRID_CELL: f64 = 2.0;
+/// The grid reaches this far (metres) beyond the model's bounding sphere: scene lines whose
+/// midpoints fall within the sphere reach out of it by half their length.
+const GRID_MARGIN: f64 = 0.02;
+
+impl std::fmt::Debug for LineGrid {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "LineGrid({:?} cells of {} m)", self.cells, self.cell)
+    }
+}
+
+impl LineGrid {
+    pub(crate) fn new(model: &MatcherModel, support_distance: f64) -> LineGrid {
+        let (centre, radius) = model.sphere;
+        let half = radius + support_distance + GRID_MARGIN;
+        let cell = (GRID_CELL * support_distance).max(1e-4);
+        let n = ((2.0 * half / cell).ceil() as usize).max(1);
+        let origin = centre - Vector3::repeat(half);
+        let words = model.lines.len().div_ceil(64).max(1);
+        let mut bits = vec![0u64; n * n * n * words];
+        // A point of the cell lies within the support distance of a line only if its centre
+        // lies within that plus half the cell's diagonal.
+        let reach = support_distance + 0.5 * cell * 3f64.sqrt();
+        for (c, cell_bits) in bits.chunks_mut(words).enumerate() {
+            let index = [c % n, (c / n) % n, c / (n * n)];
+            let at = origin + Vector3::from_fn(|k, _| (index[k] as f64 + 0.5) * cell);
+            for (i, l) in model.lines.iter().enumerate() {
+                let w = at - l.a;
+                if (w - l.dir * w.dot(&l.dir)).norm_squared() <= reach * reach {
+                    cell_bits[i / 64] |= 1 << (i % 64);
+                }
+            }
+        }
+        let mut all = vec![0u64; words];
+        for i in 0..model.lines.len() {
+            all[i / 64] |= 1 << (i % 64);
+        }
+        LineGrid { support_distance, origin, cell, cells: [n; 3], words, bits, all }
+    }
+
+    /// The bits of the cell holding `x` (model frame), if the grid reaches it.
+    fn cell_bits(&self, x: &Point3<f64>) -> Option<&[u64]> {
+        let mut at = 0;
+        for k in (0..3).rev() {
+            // Truncation is the floor here, off the grid's negative side being ruled out first.
+            let f = (x[k] - self.origin[k]) / self.cell;
+            if !(0.0..self.cells[k] as f64).contains(&f) {
+                return None;
+            }
+            at = at * self.cells[k] + f as usize;
+        }
+        Some(&self.bits[at * self.words..(at + 1) * self.words])
+    }
+
+    /// The model lines a scene line with `ends` (model frame) may lie along: those of both
+    /// ends' cells (of either, where the other is off the grid; all, where both are or where
+    /// the ends are not given).
+    pub(crate) fn lines_along(&self, ends: Option<&(Point3<f64>, Point3<f64>)>) -> impl Iterator<Item = usize> + '_ {
+        let (ba, bb) = ends.map_or((None, None), |(a, b)| (self.cell_bits(a), self.cell_bits(b)));
+        (0..self.words).flat_map(move |w| {
+            let word = match (ba, bb) {
+                (Some(x), Some(y)) => x[w] & y[w],
+                (Some(x), None) | (None, Some(x)) => x[w],
+                (None, None) => self.all[w],
+            };
+            std::iter::successors((word != 0).then_some(word), |v| Some(v & (v - 1)).filter(|v| *v != 0))
+                .map(move |v| w * 64 + v.trailing_zeros() as usize)
+        })
+    }
+}

@@ -1,0 +1,200 @@
+//! One model's virtual matcher: its characteristic views searched by subordinate matchers,
+//! the best candidate verified and kept, then further instances from the same hypotheses
+//! rescored on the lines still free.
+
+use super::hypotheses::{ScenePair, hypotheses, rescored, scene_pairs};
+use super::model::{Located, MatchParams, MatcherModel, Seg};
+use super::ranking::{Candidate, best_of, image_support_needed, in_image, refine};
+use super::support::model_lines_of;
+use super::verify::{ImageEvidence, image_support_at_least};
+use super::views::characteristic_views;
+
+/// Finds the instances of `model` among `scene` lines (in the `cam` frame).
+pub fn locate(model: &MatcherModel, scene: &[Seg], p: &MatchParams, image: Option<&ImageEvidence>) -> Vec<Located> {
+    locate_from(model, scene, &scene_pairs(scene, p), p, image).found
+}
+
+/// What one model's search leaves: the instances found, and the last round's candidates that
+/// had the 3D evidence but not the image evidence (parts of them may be hidden, see
+/// [`locate_all`]), best supported first.
+pub(crate) struct Search {
+    pub(crate) found: Vec<Located>,
+    pub(crate) doubtful: Vec<Candidate>,
+}
+
+/// [`locate`], with the scene's seed pairs given (every model's matcher searches the same).
+pub(crate) fn locate_from(
+    model: &MatcherModel,
+    scene: &[Seg],
+    pairs: &[ScenePair],
+    p: &MatchParams,
+    image: Option<&ImageEvidence>,
+) -> Search {
+    // Tabled once per model; a search with another number of focus lines tables its own.
+    let tabled = model.views.get_or_init(|| (p.focus_lines, characteristic_views(model, p)));
+    let own;
+    let views = if tabled.0 == p.focus_lines {
+        &tabled.1
+    } else {
+        own = characteristic_views(model, p);
+        &own
+    };
+    let mut free = vec![true; scene.len()];
+    let mut found = Vec::new();
+    let mut seen = hypotheses(model, scene, pairs, views, p);
+    let mut doubtful = Vec::new();
+    for _ in 0..p.max_instances {
+        if !found.is_empty() {
+            seen = rescored(model, scene, &free, &seen, p);
+        }
+        // The best-supported hypotheses, each refined and checked against the image, are
+        // verified in order of both kinds of evidence; the first that passes is the next instance.
+        // Those short of the 3D evidence or the image evidence needed are left out (their image
+        // support is not worked out, or not to the end: the check stops once it must fail).
+        doubtful.clear();
+        let best = best_of(&seen)
+            .into_iter()
+            .filter_map(|start| {
+                let (pose, score, pairs) = refine(model, scene, &free, start, p);
+                let lines_seen = model_lines_of(&pairs).len();
+                if score / model.total_length < p.min_support_fraction || lines_seen < p.min_support_lines {
+                    return None;
+                }
+                let min_image = image_support_needed(lines_seen, p);
+                let image_support = match image {
+                    Some(ev) => match image_support_at_least(model, &pose, ev, min_image) {
+                        Some(s) if s >= min_image => s,
+                        _ => {
+                            doubtful.push(Candidate { pose, score, pairs, image_support: 0.0 });
+                            return None;
+                        }
+                    },
+                    None => 1.0,
+                };
+                Some(Candidate { pose, score, pairs, image_support })
+            })
+            // The first of the highest rank.
+            .min_by(|a, b| b.rank().total_cmp(&a.rank()));
+        let Some(c) = best else { break };
+        // The pose of the one that passes is refined on the image as well: 3D lines alone
+        // leave flat parts a few degrees off.
+        let c = match image {
+            Some(ev) => in_image(model, scene, &free, c, p, ev),
+            None => c,
+        };
+        let located = c.located(model, c.image_support);
+        for &j in &located.scene_lines {
+            free[j] = false;
+        }
+        found.push(located);
+        doubtful.clear();
+    }
+    doubtful.sort_by(|a, b| b.score.total_cmp(&a.score));
+    Search { found, doubtful }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::matcher::fixtures::Lcg;
+    use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion};
+
+    fn widget() -> MatcherModel {
+        crate::matcher::fixtures::model("widget")
+    }
+
+    /// The model's lines in the scene: half of them hidden, the rest cut to fragments, their ends
+    /// noised, some reversed, and random distractors added.
+    fn scene_of(model: &MatcherModel, pose: &Isometry3<f64>, rng: &mut Lcg) -> Vec<Seg> {
+        let mut scene = Vec::new();
+        for (k, l) in model.lines.iter().enumerate() {
+            if k % 2 == 1 {
+                continue; // hidden
+            }
+            let t = l.transformed(pose);
+            let (s0, s1) = (0.1 * rng.next(), 0.75 + 0.2 * rng.next());
+            let (a, b) = (t.a + (t.b - t.a) * s0 + rng.noise(2e-4), t.a + (t.b - t.a) * s1 + rng.noise(2e-4));
+            scene.push(if k % 3 == 0 { Seg::new(b, a) } else { Seg::new(a, b) });
+        }
+        for _ in 0..15 {
+            let a = Point3::from(pose.translation.vector + rng.noise(0.15));
+            scene.push(Seg::new(a, a + rng.noise(0.04)));
+        }
+        scene
+    }
+
+    #[test]
+    fn the_pose_comes_back_within_the_noise() {
+        let model = widget();
+        let mut rng = Lcg(7);
+        for (k, rpy) in [(0.0, 0.0, 0.3), (1.57, 0.0, -0.8), (0.4, 2.1, 1.0)].iter().enumerate() {
+            let pose = Isometry3::from_parts(
+                Translation3::new(0.03, -0.05, 0.85),
+                UnitQuaternion::from_euler_angles(rpy.0, rpy.1, rpy.2),
+            );
+            let scene = scene_of(&model, &pose, &mut rng);
+            let found = locate(&model, &scene, &MatchParams::default(), None);
+            assert!(!found.is_empty(), "case {k}: not found");
+            let got = &found[0].cam_from_model;
+            let pos_err = (got.translation.vector - pose.translation.vector).norm();
+            let rot_err = got.rotation.angle_to(&pose.rotation);
+            assert!(pos_err < 1e-3, "case {k}: {:.2} mm off", pos_err * 1e3);
+            assert!(rot_err < 0.5f64.to_radians(), "case {k}: {:.2} deg off", rot_err.to_degrees());
+            assert_eq!(found.len(), 1, "case {k}: a second, false instance");
+            // The grasp comes out in the camera frame, where the model's pose puts it.
+            let (cam_from_gripper, width) = found[0].grasps[0];
+            let expect = pose * model.grasps[0].0;
+            assert!((cam_from_gripper.translation.vector - expect.translation.vector).norm() < 1e-3);
+            assert_eq!(width, model.grasps[0].1);
+        }
+    }
+
+    #[test]
+    fn a_scene_of_distractors_alone_yields_nothing() {
+        let model = widget();
+        let mut rng = Lcg(3);
+        let scene: Vec<Seg> = (0..40)
+            .map(|_| {
+                let a = Point3::new(0.0, 0.0, 0.9) + rng.noise(0.15);
+                Seg::new(a, a + rng.noise(0.05))
+            })
+            .collect();
+        assert!(locate(&model, &scene, &MatchParams::default(), None).is_empty());
+    }
+
+    /// A symmetric model seen from above: only the lines on faces turned towards a camera over
+    /// it (the top and the sides), fragmented and noised. The pose comes back up to the model's
+    /// symmetry, although its equivalent focus pairs are tabled once.
+    #[test]
+    fn a_symmetric_model_seen_from_one_side_is_found_up_to_its_symmetry() {
+        let lib = mesh::Library::load_default().unwrap();
+        for name in ["block", "hex_prism"] {
+            let model = MatcherModel::from_model(lib.get(name).unwrap());
+            let pose = Isometry3::from_parts(
+                Translation3::new(-0.02, 0.04, 0.9),
+                UnitQuaternion::from_euler_angles(2.6, 0.3, -0.7),
+            );
+            let mut rng = Lcg(11);
+            let scene: Vec<Seg> = (0..model.lines.len())
+                .filter(|&k| model.faces_camera(k, &pose))
+                .map(|k| {
+                    let t = model.lines[k].transformed(&pose);
+                    Seg::new(t.a + (t.b - t.a) * 0.05 + rng.noise(2e-4), t.a + (t.b - t.a) * 0.9 + rng.noise(2e-4))
+                })
+                .collect();
+            let found = locate(&model, &scene, &MatchParams::default(), None);
+            assert_eq!(found.len(), 1, "{name}");
+            // Equivalent under the symmetry: every model line lands on a model line of the truth.
+            let got = found[0].cam_from_model;
+            for l in &model.lines {
+                let (a, b) = (got * l.a, got * l.b);
+                let on_truth = model.lines.iter().any(|m| {
+                    let (ma, mb) = (pose * m.a, pose * m.b);
+                    ((ma - a).norm() < 2e-3 && (mb - b).norm() < 2e-3)
+                        || ((ma - b).norm() < 2e-3 && (mb - a).norm() < 2e-3)
+                });
+                assert!(on_truth, "{name}: a line of the located model is not on the true one");
+            }
+        }
+    }
+}
