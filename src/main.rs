@@ -3,7 +3,7 @@
 
 mod cli;
 
-use cli::{bench, edges, eval, locate, pick, render, stereo};
+use cli::{bench, edges, eval, locate, pick, render, serve, stereo};
 
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
@@ -123,6 +123,34 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Host the simulated cell (world, arm, cameras) and the robot server behind a TCP socket
+    /// speaking protocol v1 (docs/PROTOCOL.md), until Ctrl-C or an authorised `shutdown`.
+    ///
+    /// Prints `listening on ADDR` on stdout once the world has settled; logs every request on
+    /// stderr (RUST_LOG filters).
+    Serve {
+        world: PathBuf,
+        /// Seed (default: the world file's).
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Address to listen on; port 0 picks a free one. Off loopback a token is required.
+        #[arg(long, default_value = "127.0.0.1:7878")]
+        listen: std::net::SocketAddr,
+        /// A file whose first line is the token every connection must give in `hello`
+        /// (default: the MARVIN_TOKEN environment variable, if set).
+        #[arg(long)]
+        token_file: Option<PathBuf>,
+        /// A hand-eye file (`cam_from_base`, as `marvin calibrate` writes it), so that
+        /// `cam`-frame requests work from the start.
+        #[arg(long)]
+        hand_eye: Option<PathBuf>,
+        /// Serve the `truth` op (the simulation's ground truth) for evaluation and tests.
+        #[arg(long)]
+        truth: bool,
+        /// Close connections idle this long, seconds.
+        #[arg(long, default_value_t = marvin::protocol::IDLE_TIMEOUT_S)]
+        idle_timeout_s: f64,
+    },
     /// Run seeded scenes through the pipeline and compare with ground truth.
     Eval {
         #[command(subcommand)]
@@ -146,6 +174,9 @@ fn main() -> std::process::ExitCode {
         Command::Locate { world, seed, models, json, out } => locate::run(&world, seed, models, json, out.as_deref()),
         Command::Pick { world, object, all: _, model, seed, json } => {
             pick::run(&world, object, model.as_deref(), seed, json)
+        }
+        Command::Serve { world, seed, listen, token_file, hand_eye, truth, idle_timeout_s } => {
+            serve::run(serve::ServeArgs { world, seed, listen, token_file, hand_eye, truth, idle_timeout_s })
         }
         Command::Eval { what } => eval::run(what),
         Command::Bench { what } => bench::run(what),

@@ -7,6 +7,7 @@
 use anyhow::{Result, anyhow};
 use mesh::Model;
 use nalgebra::{Isometry3, Point3, Vector3};
+use rapier3d::prelude::RigidBodyHandle;
 use robot::pick::{Action, GraspCandidate, PickPlan, PickRequest, PlaceTarget, grasp_variants, plan_pick};
 use robot::planner::Obstacle;
 use robot::{Arm, Ik};
@@ -74,8 +75,10 @@ pub struct PickCell<'a> {
     pub cell: Cell,
     pub arm: SimArm,
     /// (object id, model, body) for every object.
-    pub objects: Vec<(u32, String, rapier3d::prelude::RigidBodyHandle)>,
+    pub objects: Vec<(u32, String, RigidBodyHandle)>,
     pub simulated_s: f64,
+    /// The bin (index into the world's bins) a pick is judged against: the first unless told.
+    pub bin: usize,
 }
 
 impl<'a> PickCell<'a> {
@@ -94,7 +97,7 @@ impl<'a> PickCell<'a> {
             })
             .collect();
         let arm = SimArm::insert(&mut cell, &work.urdf, &work.world_from_base, &HOME, 0.0)?;
-        let mut pc = PickCell { scn, work, cell, arm, objects, simulated_s: 0.0 };
+        let mut pc = PickCell { scn, work, cell, arm, objects, simulated_s: 0.0, bin: 0 };
         pc.run_for(HOLD_S);
         Ok(pc)
     }
@@ -114,7 +117,7 @@ impl<'a> PickCell<'a> {
         }
     }
 
-    fn body(&self, id: u32) -> Result<(String, rapier3d::prelude::RigidBodyHandle)> {
+    fn body(&self, id: u32) -> Result<(String, RigidBodyHandle)> {
         self.objects
             .iter()
             .find(|(i, _, _)| *i == id)
@@ -125,18 +128,7 @@ impl<'a> PickCell<'a> {
     /// The pick request for object `id`, from the objects' current (true) poses.
     pub fn request(&self, id: u32, seed: u64) -> Result<PickRequest> {
         let base_from_world = self.work.world_from_base.inverse();
-        let mut obstacles: Vec<Obstacle> = static_boxes(&self.scn.world)
-            .into_iter()
-            .filter(|b| b.name != "floor")
-            .map(|b| {
-                let h = b.half_extents;
-                Obstacle {
-                    name: b.name.clone(),
-                    shape: parry3d::shape::SharedShape::cuboid(h.x as f32, h.y as f32, h.z as f32),
-                    base_from_shape: base_from_world * b.world_from_box,
-                }
-            })
-            .collect();
+        let mut obstacles = static_obstacles(self.scn, self.work);
         let mut target = None;
         for (oid, model, body) in &self.objects {
             let o = Obstacle {
@@ -151,15 +143,11 @@ impl<'a> PickCell<'a> {
         let grasps = grasp_candidates(&self.scn.library.models[&model_name], &target.base_from_shape);
         let bin =
             self.scn.world.bins.first().ok_or_else(|| anyhow!("{}: no bin to place into", self.scn.path.display()))?;
-        let floor = Isometry3::translation(bin.centre_m[0], bin.centre_m[1], bin.wall_m);
         Ok(PickRequest {
             grasps,
             target,
             obstacles,
-            place: PlaceTarget {
-                base_from_floor_centre: base_from_world * floor,
-                size_xy: [bin.size_m[0], bin.size_m[1]],
-            },
+            place: place_target(self.work, bin),
             start: self.arm.joints(&self.cell),
             seed,
         })
@@ -175,11 +163,23 @@ impl<'a> PickCell<'a> {
 
     /// Executes a pick plan for object `id` (or reports why there is none) and judges it.
     pub fn run_plan(&mut self, id: u32, plan: Result<PickPlan, robot::pick::PickError>) -> Result<PickOutcome> {
-        let (model, body) = self.body(id)?;
+        let (_, body) = self.body(id)?;
+        Ok(self.run_plan_on(Some(body), plan))
+    }
+
+    /// Executes a pick plan for `target` -- or, when the caller does not know which body it
+    /// aims at (the robot server knows only a grasp pose), for whatever object the fingers
+    /// close on -- and judges it from the physics. A failed pick leaves the gripper open and
+    /// lifted clear.
+    pub fn run_plan_on(
+        &mut self,
+        target: Option<RigidBodyHandle>,
+        plan: Result<PickPlan, robot::pick::PickError>,
+    ) -> PickOutcome {
         let start_s = self.simulated_s;
         let mut out = PickOutcome {
-            object: id,
-            model,
+            object: 0,
+            model: String::new(),
             result: "unplanned".into(),
             placed: false,
             held: false,
@@ -190,24 +190,49 @@ impl<'a> PickCell<'a> {
             worst_tracking_step: None,
             closed_opening_mm: None,
         };
+        if let Some(body) = target {
+            self.name_object(body, &mut out);
+        }
         let plan = match plan {
             Ok(p) => p,
             Err(e) => {
                 out.detail = Some(e.to_string());
-                return Ok(out);
+                return out;
             }
         };
         out.grasp = Some(plan.grasp_index);
-        self.execute(&plan, body, &mut out);
+        self.execute(&plan, target, &mut out);
         if !out.placed {
             self.recover();
         }
         out.simulated_s = self.simulated_s - start_s;
-        Ok(out)
+        out
     }
 
-    fn execute(&mut self, plan: &PickPlan, body: rapier3d::prelude::RigidBodyHandle, out: &mut PickOutcome) {
-        let z0 = self.cell.pose(body).translation.z;
+    fn name_object(&self, body: RigidBodyHandle, out: &mut PickOutcome) {
+        if let Some((id, model, _)) = self.objects.iter().find(|(_, _, b)| *b == body) {
+            (out.object, out.model) = (*id, model.clone());
+        }
+    }
+
+    /// The object whose centre of mass lies between the finger pads, the nearest the tool
+    /// centre point if several do.
+    fn body_between_fingers(&self) -> Option<RigidBodyHandle> {
+        let gripper = self.arm.world_from_gripper(&self.cell);
+        let distance = |b: RigidBodyHandle| {
+            let com = self.cell.world.bodies[b].center_of_mass();
+            (gripper.translation.vector - Vector3::new(com.x as f64, com.y as f64, com.z as f64)).norm()
+        };
+        self.objects
+            .iter()
+            .map(|(_, _, b)| *b)
+            .filter(|b| self.between_fingers(*b))
+            .min_by(|a, b| distance(*a).total_cmp(&distance(*b)))
+    }
+
+    fn execute(&mut self, plan: &PickPlan, target: Option<RigidBodyHandle>, out: &mut PickOutcome) {
+        let height = |cell: &Cell, b: RigidBodyHandle| cell.pose(b).translation.z;
+        let mut target = target.map(|b| (b, height(&self.cell, b)));
         for step in &plan.steps {
             match &step.action {
                 Action::Move(traj) => {
@@ -223,23 +248,31 @@ impl<'a> PickCell<'a> {
                 "close" => {
                     let opening = self.arm.opening(&self.cell);
                     out.closed_opening_mm = Some(opening * 1e3);
-                    if opening < 0.2 * plan.grasp.width {
+                    if target.is_none() {
+                        target = self.body_between_fingers().map(|b| (b, height(&self.cell, b)));
+                        if let Some((b, _)) = target {
+                            self.name_object(b, out);
+                        }
+                    }
+                    if opening < 0.2 * plan.grasp.width || target.is_none() {
                         return fail(out, "miss", format!("the fingers closed to {:.1} mm on nothing", opening * 1e3));
                     }
                 }
                 "lift" => {
-                    let rise = self.cell.pose(body).translation.z - z0;
+                    let Some((body, z0)) = target else { return };
+                    let rise = height(&self.cell, body) - z0;
                     out.held = self.between_fingers(body) && rise > LIFTED_FRACTION * robot::pick::LIFT_M;
                     if !out.held {
                         return fail(out, "slip", format!("the object rose {:.0} mm with the gripper", rise * 1e3));
                     }
                 }
-                "lower" if !self.between_fingers(body) => {
+                "lower" if target.is_some_and(|(b, _)| !self.between_fingers(b)) => {
                     return fail(out, "drop", "the object left the gripper on the way to the bin".into());
                 }
                 _ => {}
             }
         }
+        let Some((body, _)) = target else { return };
         self.run_until_rest(body);
         out.placed = self.inside_bin(body);
         if out.placed {
@@ -265,7 +298,7 @@ impl<'a> PickCell<'a> {
     }
 
     /// Runs a trajectory through the joint motors; the worst tracking error.
-    fn follow(&mut self, traj: &robot::trajectory::Trajectory) -> f64 {
+    pub fn follow(&mut self, traj: &robot::trajectory::Trajectory) -> f64 {
         let n = (traj.duration() / self.dt()).ceil() as usize;
         let mut worst = 0.0f64;
         for i in 1..=n {
@@ -294,7 +327,7 @@ impl<'a> PickCell<'a> {
         self.run_for(HOLD_S);
     }
 
-    fn run_until_rest(&mut self, body: rapier3d::prelude::RigidBodyHandle) {
+    fn run_until_rest(&mut self, body: RigidBodyHandle) {
         let mut calm = 0.0;
         let mut t = 0.0;
         while t < REST_LIMIT_S && calm < 0.25 {
@@ -306,7 +339,7 @@ impl<'a> PickCell<'a> {
     }
 
     /// The object's centre of mass lies between the finger pads (within reach of the tcp).
-    fn between_fingers(&self, body: rapier3d::prelude::RigidBodyHandle) -> bool {
+    fn between_fingers(&self, body: RigidBodyHandle) -> bool {
         let gripper = self.arm.world_from_gripper(&self.cell);
         let com = self.cell.world.bodies[body].center_of_mass();
         let c = gripper.inverse() * Point3::new(com.x as f64, com.y as f64, com.z as f64);
@@ -319,17 +352,53 @@ impl<'a> PickCell<'a> {
         self.body(id).is_ok_and(|(_, b)| self.inside_bin(b))
     }
 
-    /// At rest with its centre of mass over the inside of the first bin's floor, no higher than
+    /// Whether `body` rests in any of the cell's bins.
+    pub fn inside_any_bin(&self, body: RigidBodyHandle) -> bool {
+        (0..self.scn.world.bins.len()).any(|k| self.inside_bin_k(body, k))
+    }
+
+    /// At rest with its centre of mass over the inside of the target bin's floor, no higher than
     /// the bin is deep above its rim (so on the floor or on what already lies in the bin, not
     /// balanced on a wall, which would put the centre of mass over the wall).
-    pub fn inside_bin(&self, body: rapier3d::prelude::RigidBodyHandle) -> bool {
-        let Some(bin) = self.scn.world.bins.first() else { return false };
+    pub fn inside_bin(&self, body: RigidBodyHandle) -> bool {
+        self.inside_bin_k(body, self.bin)
+    }
+
+    fn inside_bin_k(&self, body: RigidBodyHandle, k: usize) -> bool {
+        let Some(bin) = self.scn.world.bins.get(k) else { return false };
         let b = &self.cell.world.bodies[body];
         let com = b.center_of_mass();
         let (dx, dy) = ((com.x as f64 - bin.centre_m[0]).abs(), (com.y as f64 - bin.centre_m[1]).abs());
         let resting = b.linvel().length() < 0.01;
         let [sx, sy, depth] = bin.size_m;
         resting && dx < sx / 2.0 && dy < sy / 2.0 && (com.z as f64) < bin.wall_m + 2.0 * depth
+    }
+}
+
+/// The cell's fixed boxes but the floor (table, bin walls) as the planner's obstacles, in the
+/// base frame: what the robot knows of its cell without looking.
+pub fn static_obstacles(scn: &Scenario, work: &Workcell) -> Vec<Obstacle> {
+    let base_from_world = work.world_from_base.inverse();
+    static_boxes(&scn.world)
+        .into_iter()
+        .filter(|b| b.name != "floor")
+        .map(|b| {
+            let h = b.half_extents;
+            Obstacle {
+                name: b.name.clone(),
+                shape: parry3d::shape::SharedShape::cuboid(h.x as f32, h.y as f32, h.z as f32),
+                base_from_shape: base_from_world * b.world_from_box,
+            }
+        })
+        .collect()
+}
+
+/// The first bin's floor as a place target in the base frame.
+pub fn place_target(work: &Workcell, bin: &sim::world::BinSpec) -> PlaceTarget {
+    let floor = Isometry3::translation(bin.centre_m[0], bin.centre_m[1], bin.wall_m);
+    PlaceTarget {
+        base_from_floor_centre: work.world_from_base.inverse() * floor,
+        size_xy: [bin.size_m[0], bin.size_m[1]],
     }
 }
 

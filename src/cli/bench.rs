@@ -28,6 +28,23 @@ pub enum BenchTarget {
     /// thread. `realtime_factor`: simulated seconds per wall-clock second, median over `--runs`
     /// seeded scenes.
     Physics(PhysicsArgs),
+    /// The robot server over loopback, started in-process on the default world.
+    /// `status_p50_ms`, `status_p99_ms`: round trips of `status` (`--runs` of them, after 50 to
+    /// warm up). `pick_plan_ms`: the server's planning time of a pick (inverse kinematics and
+    /// paths, `plan_only`), median over every object of the scene planned from its true pose.
+    Server(ServerBenchArgs),
+}
+
+#[derive(Args)]
+pub struct ServerBenchArgs {
+    #[arg(long, default_value = "worlds/widgets.toml")]
+    world: PathBuf,
+    /// `status` round trips timed.
+    #[arg(long, default_value_t = 2000)]
+    runs: usize,
+    /// Print JSON: `{"server": {"status_p50_ms": X, "status_p99_ms": Y, "pick_plan_ms": Z, ...}}`.
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Args)]
@@ -166,6 +183,7 @@ fn scene_size(scn: &Scenario) -> usize {
 pub fn run(target: BenchTarget) -> anyhow::Result<()> {
     match target {
         BenchTarget::Physics(args) => physics(&args),
+        BenchTarget::Server(args) => server(&args),
         BenchTarget::Render(args) => render(&args),
         BenchTarget::Vision(args) => vision(&args),
     }
@@ -251,4 +269,87 @@ fn vision(args: &BenchArgs) -> anyhow::Result<()> {
     results.push(("vision_cycle", cycle));
     let what = format!("{}; canny one thread, the rest {} threads", args.world.display(), rayon::current_num_threads());
     report(args, &results, &what)
+}
+
+fn server(args: &ServerBenchArgs) -> anyhow::Result<()> {
+    use marvin::protocol::{Frame, PickSpec, PlaceSpec, WireGrasp, WireObject, WirePose};
+    use marvin::server::{CellConfig, Server, ServerConfig};
+    let cell = CellConfig { world: args.world.clone(), seed: None, cam_from_base: None, expose_truth: true };
+    let server = Server::start(ServerConfig::new(cell, "127.0.0.1:0".parse()?))?;
+    let mut client = marvin::client::Client::connect(&server.addr().to_string(), std::time::Duration::from_secs(5))?;
+    let hello = client.hello(None)?;
+    for _ in 0..50 {
+        client.status()?;
+    }
+    let mut ms: Vec<f64> = Vec::with_capacity(args.runs);
+    for _ in 0..args.runs.max(1) {
+        let t = Instant::now();
+        client.status()?;
+        ms.push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    ms.sort_by(f64::total_cmp);
+    let quantile = |q: f64| ms[((ms.len() - 1) as f64 * q).round() as usize];
+    // Every object planned from its true pose (a benchmark may read the truth), not moved.
+    let truth = client.truth()?;
+    let base_from_world = truth.world_from_base.to_isometry("world_from_base")?.inverse();
+    let library = mesh::Library::load_default()?;
+    let in_base = |p: &WirePose| -> anyhow::Result<_> { Ok(base_from_world * p.to_isometry("world_from_model")?) };
+    let (mut plan_ms, mut unplanned) = (Vec::new(), 0);
+    for o in &truth.objects {
+        let base_from_model = in_base(&o.world_from_model)?;
+        let grasp = &library.get(&o.model).ok_or_else(|| anyhow::anyhow!("no model {}", o.model))?.grasps[0];
+        let obstacles = truth
+            .objects
+            .iter()
+            .filter(|x| x.id != o.id)
+            .map(|x| {
+                Ok(WireObject {
+                    model: x.model.clone(),
+                    pose: WirePose::new(Some(Frame::Base), &in_base(&x.world_from_model)?),
+                })
+            })
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        let spec = PickSpec {
+            model: o.model.clone(),
+            grasp: WireGrasp::new(
+                WirePose::new(Some(Frame::Base), &(base_from_model * grasp.model_from_gripper)),
+                grasp.opening * 1e3,
+            ),
+            place: PlaceSpec { bin: hello.bins[0].clone() },
+            object: Some(WirePose::new(Some(Frame::Base), &base_from_model)),
+            obstacles,
+            plan_only: true,
+        };
+        match client.pick(spec) {
+            Ok(reply) => plan_ms.push(reply.plan_ms),
+            Err(e) if e.wire().is_some() => unplanned += 1,
+            Err(e) => return Err(e.into()),
+        }
+    }
+    plan_ms.sort_by(f64::total_cmp);
+    let plan_median = plan_ms.get(plan_ms.len() / 2).copied().unwrap_or(f64::NAN);
+    client.bye()?;
+    server.stop();
+    server.wait()?;
+    let doc = serde_json::json!({ "server": {
+        "status_p50_ms": quantile(0.5),
+        "status_p99_ms": quantile(0.99),
+        "pick_plan_ms": plan_median,
+        "status_runs": ms.len(),
+        "picks_planned": plan_ms.len(),
+        "picks_unplanned": unplanned,
+    }});
+    if args.json {
+        return emit(&doc.to_string());
+    }
+    emit(&format!(
+        "status round trip: p50 {:.3} ms, p99 {:.3} ms ({} requests over loopback)",
+        quantile(0.5),
+        quantile(0.99),
+        ms.len()
+    ))?;
+    emit(&format!(
+        "pick planning (IK + paths): median {plan_median:.1} ms over {} objects ({unplanned} could not be planned)",
+        plan_ms.len()
+    ))
 }

@@ -5,6 +5,7 @@
 //! - [`stereo`]: the front end on any stereo pair.
 //! - [`locate`]: render, front end and matcher on one scene, against the truth.
 //! - [`pick`]: physical picks with the simulated arm.
+//! - [`serve`]: the simulated cell and the robot server behind a socket.
 //! - [`eval`], [`eval_pick`]: the pipeline over seeded scenes, against the truth.
 //! - [`bench`]: medians of how fast things run.
 //! - [`output`]: printing that tolerates a reader going away.
@@ -17,4 +18,5 @@ pub mod locate;
 pub mod output;
 pub mod pick;
 pub mod render;
+pub mod serve;
 pub mod stereo;

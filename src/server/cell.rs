@@ -1,0 +1,485 @@
+//! The simulated cell behind the robot server, on a thread of its own that owns the physics:
+//! the "hardware" (the settled world in rapier, the arm, the cameras) and what the robot
+//! server computes for it (the hand-eye transform, inverse kinematics, paths, pick execution).
+//!
+//! What it may know is what a real robot server knows: its arm model, its cell's fixed layout
+//! (table, bins), its hand-eye file, and what requests carry. It never plans from the objects'
+//! true poses: a pick is planned from the grasp (and object pose, and obstacles) the request
+//! gives, and judged afterwards from the physics as `marvin pick` judges it. Only the `truth`
+//! op, served only when the server was started for evaluation, reads the simulation's truth.
+
+use super::{CellJob, Shared};
+use crate::pick::{HOME, PickCell, Workcell, grasp_candidates, place_target, static_obstacles};
+use crate::protocol::{
+    CaptureReply, ErrorCode, Frame, HelloReply, Intrinsics, MoveReply, MoveTarget, PROTOCOL, PickOutcomeKind,
+    PickReply, PickSpec, Request, RigCalibration, StatusReply, TruthObject, TruthReply, WireError, WirePose,
+};
+use anyhow::Context;
+use base64::Engine;
+use mesh::{PinholeCamera, StereoCalibration};
+use nalgebra::Isometry3;
+use robot::Joints;
+use robot::pick::{FREE_SPEED, GraspCandidate, PickRequest, grasp_variants, plan_pick};
+use robot::planner::{CollisionWorld, Obstacle, PlannerParams, Problem};
+use robot::trajectory::{Limits, Trajectory};
+use serde_json::Value;
+use sim::physics::collision_shape;
+use sim::render::{Light, RenderScene, render_stereo};
+use sim::{Scenario, Scene};
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+use std::sync::mpsc::Receiver;
+use std::time::Instant;
+
+/// What the cell is made from.
+#[derive(Debug, Clone)]
+pub struct CellConfig {
+    pub world: PathBuf,
+    /// Clutter and noise seed (default: the world file's).
+    pub seed: Option<u64>,
+    /// A hand-eye transform known from the start (`--hand-eye`).
+    pub cam_from_base: Option<Isometry3<f64>>,
+    /// Serve the `truth` op (evaluation and tests only).
+    pub expose_truth: bool,
+}
+
+/// Runs the cell: loads and settles the world, reports that it is ready (or why it cannot be),
+/// then serves jobs until every sender is gone.
+pub(crate) fn run(
+    config: CellConfig,
+    jobs: Receiver<CellJob>,
+    shared: Arc<Shared>,
+    ready: std::sync::mpsc::Sender<anyhow::Result<()>>,
+) {
+    let loaded = crate::pick::load(&config.world).and_then(|(scn, work)| {
+        let world_bins = scn.world.bins.len();
+        anyhow::ensure!(
+            world_bins > 0,
+            "{}: no [[bins]]: the robot server has nowhere to place",
+            config.world.display()
+        );
+        Ok((scn, work))
+    });
+    let (scn, work) = match loaded {
+        Ok(x) => x,
+        Err(e) => {
+            let _ = ready.send(Err(e));
+            return;
+        }
+    };
+    let seed = config.seed.unwrap_or(scn.world.seed);
+    let scene = Scene::settle(&scn, seed);
+    let mut cell = match SimCell::new(&scn, &work, &scene, &config, seed) {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = ready.send(Err(e));
+            return;
+        }
+    };
+    let _ = ready.send(Ok(()));
+    cell.publish(&shared, false);
+    for job in jobs {
+        let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| cell.serve(&job.request)));
+        let result = outcome.unwrap_or_else(|panic| {
+            let why =
+                panic.downcast_ref::<String>().cloned().or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()));
+            tracing::error!(op = job.request.op(), "the cell panicked: {why:?}");
+            Err(WireError::new(ErrorCode::Internal, format!("the cell failed: {}", why.unwrap_or_default())))
+        });
+        cell.publish(&shared, false);
+        if job.request.is_motion() {
+            shared.moving.store(false, Ordering::SeqCst);
+        }
+        let _ = job.reply.send(result);
+    }
+}
+
+/// The cell and the robot server's state.
+struct SimCell<'a> {
+    scn: &'a Scenario,
+    work: &'a Workcell,
+    pick: PickCell<'a>,
+    calib: StereoCalibration,
+    light: Light,
+    cam_from_base: Option<Isometry3<f64>>,
+    expose_truth: bool,
+    seed: u64,
+    /// Captures and motions so far: each gets a seed of its own (sensor noise, planner).
+    captures: u64,
+    motions: u64,
+}
+
+impl<'a> SimCell<'a> {
+    fn new(
+        scn: &'a Scenario,
+        work: &'a Workcell,
+        scene: &Scene,
+        config: &CellConfig,
+        seed: u64,
+    ) -> anyhow::Result<SimCell<'a>> {
+        let pick = PickCell::new(scn, work, scene).context("putting the arm into the cell")?;
+        Ok(SimCell {
+            scn,
+            work,
+            pick,
+            calib: sim::rig::calibration(&scn.world.cameras),
+            light: Light::from(&scn.world.light),
+            cam_from_base: config.cam_from_base,
+            expose_truth: config.expose_truth,
+            seed,
+            captures: 0,
+            motions: 0,
+        })
+    }
+
+    fn serve(&mut self, request: &Request) -> Result<Value, WireError> {
+        match request {
+            Request::Hello { .. } => json(Ok(self.hello())),
+            Request::Capture {} => json(self.capture()),
+            Request::Move(target) => json(self.move_to(target)),
+            Request::Home {} => json(self.move_to_joints(&HOME, FREE_SPEED)),
+            Request::SetHandEye { cam_from_base } => {
+                self.cam_from_base = Some(cam_from_base.to_isometry("cam_from_base")?);
+                Ok(serde_json::json!({ "calibrated": true }))
+            }
+            Request::Pick(spec) => json(self.pick(spec)),
+            Request::Truth {} if self.expose_truth => json(Ok(self.truth())),
+            Request::Truth {} => Err(WireError::new(
+                ErrorCode::BadRequest,
+                "`truth` is served only by a server started with --truth (evaluation)",
+            )),
+            Request::Status {} | Request::Shutdown {} | Request::Bye {} => {
+                Err(WireError::new(ErrorCode::Internal, format!("`{}` is not the cell's to serve", request.op())))
+            }
+        }
+    }
+
+    /// Updates the status every connection reads without waiting for the cell.
+    fn publish(&self, shared: &Shared, moving: bool) {
+        let status = StatusReply {
+            joints: self.joint_map(&self.joints()),
+            gripper_opening_mm: self.pick.arm.opening(&self.pick.cell) * 1e3,
+            holding: None,
+            calibrated: self.cam_from_base.is_some(),
+            sim_time_s: self.pick.simulated_s,
+            moving,
+        };
+        *shared.status.lock().unwrap_or_else(|e| e.into_inner()) = status;
+    }
+
+    fn hello(&self) -> HelloReply {
+        HelloReply {
+            server: format!("marvin robot server {}", env!("CARGO_PKG_VERSION")),
+            protocol: PROTOCOL,
+            models: self.scn.library.names().map(str::to_string).collect(),
+            bins: self.scn.world.bins.iter().map(|b| b.name.clone()).collect(),
+            calibrated: self.cam_from_base.is_some(),
+        }
+    }
+
+    fn joints(&self) -> Joints {
+        self.pick.arm.joints(&self.pick.cell)
+    }
+
+    fn joint_map(&self, q: &Joints) -> BTreeMap<String, f64> {
+        (0..6).map(|k| (self.work.arm.joint(k).name.clone(), q[k])).collect()
+    }
+
+    /// The stereo pair as the cameras see the cell now.
+    fn capture(&mut self) -> Result<CaptureReply, WireError> {
+        let statics = sim::scene::static_boxes(&self.scn.world).into_iter().map(|b| (0, b.mesh()));
+        let objects: Vec<(u32, mesh::TriMesh)> = self
+            .pick
+            .objects
+            .iter()
+            .map(|(id, model, body)| {
+                (*id, self.scn.library.models[model].mesh.transformed(&self.pick.cell.pose(*body)))
+            })
+            .collect();
+        let rs = RenderScene::new(statics.chain(objects), &self.light);
+        self.captures += 1;
+        let noise_seed = self.seed.wrapping_mul(1_000_003).wrapping_add(self.captures);
+        let (left, right) = render_stereo(&rs, &self.calib, self.scn.world.render.noise_sigma, noise_seed);
+        Ok(CaptureReply {
+            left_png_b64: png_b64(&left.image, left.width, left.height)?,
+            right_png_b64: png_b64(&right.image, right.width, right.height)?,
+            calibration: rig_calibration(&self.calib),
+            sim_time_s: self.pick.simulated_s,
+        })
+    }
+
+    /// `base_from_x` for a pose given in `base` or `cam`.
+    fn in_base(&self, frame: Frame, pose: Isometry3<f64>) -> Result<Isometry3<f64>, WireError> {
+        match frame {
+            Frame::Base => Ok(pose),
+            Frame::Cam => {
+                let cam_from_base = self.cam_from_base.ok_or_else(|| {
+                    WireError::new(
+                        ErrorCode::NotCalibrated,
+                        "a `cam`-frame pose needs the hand-eye transform: send set_hand_eye first",
+                    )
+                })?;
+                Ok(cam_from_base.inverse() * pose)
+            }
+            Frame::Gripper => Err(WireError::new(ErrorCode::BadRequest, "poses here are in `base` or `cam`")),
+        }
+    }
+
+    fn move_to(&mut self, target: &MoveTarget) -> Result<MoveReply, WireError> {
+        let speed = target.speed.unwrap_or(FREE_SPEED);
+        if !(speed.is_finite() && speed > 0.0 && speed <= 1.0) {
+            return Err(WireError::new(ErrorCode::BadRequest, format!("`speed` must be in (0, 1], got {speed}")));
+        }
+        let goal = match (&target.tool, &target.joints) {
+            (Some(tool), None) => {
+                let (frame, pose) = tool.in_frames("tool", &[Frame::Base, Frame::Cam])?;
+                let base_from_gripper = self.in_base(frame, pose)?;
+                self.work
+                    .ik
+                    .solve_near(&base_from_gripper, &self.joints())
+                    .map_err(|e| WireError::new(ErrorCode::Unreachable, format!("the tool pose: {e}")))?
+            }
+            (None, Some(named)) => self.joints_named(named)?,
+            _ => return Err(WireError::new(ErrorCode::BadRequest, "`move` takes exactly one of `tool` and `joints`")),
+        };
+        self.move_to_joints(&goal, speed)
+    }
+
+    /// The current joints with those named replaced, each checked against its limits.
+    fn joints_named(&self, named: &BTreeMap<String, f64>) -> Result<Joints, WireError> {
+        let mut q = self.joints();
+        for (name, value) in named {
+            let k = (0..6).find(|&k| self.work.arm.joint(k).name == *name).ok_or_else(|| {
+                let known: Vec<&str> = (0..6).map(|k| self.work.arm.joint(k).name.as_str()).collect();
+                WireError::new(
+                    ErrorCode::BadRequest,
+                    format!("no joint `{name}`; the arm's joints: {}", known.join(", ")),
+                )
+            })?;
+            if !value.is_finite() {
+                return Err(WireError::new(ErrorCode::BadRequest, format!("joint `{name}`: {value} is not finite")));
+            }
+            let j = self.work.arm.joint(k);
+            if *value < j.lower || *value > j.upper {
+                return Err(WireError::new(
+                    ErrorCode::Unreachable,
+                    format!("joint `{name}` at {value:.4} is outside its limits {:.4}..{:.4}", j.lower, j.upper),
+                ));
+            }
+            q[k] = *value;
+        }
+        Ok(q)
+    }
+
+    /// Plans a collision-free path among the cell's fixed boxes to `goal` and follows it.
+    fn move_to_joints(&mut self, goal: &Joints, speed: f64) -> Result<MoveReply, WireError> {
+        let start = self.joints();
+        let opening = self.pick.arm.opening(&self.pick.cell);
+        let world =
+            CollisionWorld::new(&self.work.arm, static_obstacles(self.scn, self.work), robot::pick::FREE_CLEARANCE_M);
+        self.motions += 1;
+        let path = Problem { arm: &self.work.arm, world: &world, opening, attached: None }
+            .plan(&start, goal, &PlannerParams::default(), self.motion_seed())
+            .map_err(|e| WireError::new(ErrorCode::NoPath, e.to_string()))?;
+        let limits = Limits { velocity: self.work.arm.max_velocity(), acceleration: self.work.arm.max_acceleration() };
+        let t0 = self.pick.simulated_s;
+        let err = self.pick.follow(&Trajectory::piecewise(&path, &limits.scaled(speed)));
+        let q = self.joints();
+        Ok(MoveReply {
+            base_from_gripper: WirePose::new(Some(Frame::Base), &self.work.arm.base_from_gripper(&q)),
+            joints: self.joint_map(&q),
+            motion_s: self.pick.simulated_s - t0,
+            max_tracking_error: err,
+        })
+    }
+
+    fn motion_seed(&self) -> u64 {
+        self.seed.wrapping_mul(6364136223846793005).wrapping_add(self.motions)
+    }
+
+    fn pick(&mut self, spec: &PickSpec) -> Result<PickReply, WireError> {
+        let t0 = Instant::now();
+        let request = self.pick_request(spec)?;
+        let bin = self.scn.world.bins.iter().position(|b| b.name == spec.place.bin).expect("checked in pick_request");
+        let plan = plan_pick(&self.work.arm, &self.work.ik, &request).map_err(|e| self.why_unplanned(&request, e))?;
+        let plan_ms = t0.elapsed().as_secs_f64() * 1e3;
+        if spec.plan_only {
+            let grasp_index = plan.grasp_index;
+            return Ok(PickReply {
+                outcome: None,
+                detail: None,
+                plan_ms,
+                motion_s: 0.0,
+                grasp_index,
+                closed_opening_mm: None,
+            });
+        }
+        self.pick.bin = bin;
+        let out = self.pick.run_plan_on(None, Ok(plan));
+        let outcome = match out.result.as_str() {
+            "placed" => PickOutcomeKind::Placed,
+            "miss" => PickOutcomeKind::Miss,
+            "slip" => PickOutcomeKind::Slip,
+            "drop" => PickOutcomeKind::Drop,
+            _ => PickOutcomeKind::OutsideBin,
+        };
+        Ok(PickReply {
+            outcome: Some(outcome),
+            detail: out.detail,
+            plan_ms,
+            motion_s: out.simulated_s,
+            grasp_index: out.grasp.unwrap_or(0),
+            closed_opening_mm: out.closed_opening_mm,
+        })
+    }
+
+    /// A planning failure as the protocol reports it: `unreachable` when inverse kinematics
+    /// has no solution at any grasp offered, `no_path` when solutions exist but every plan
+    /// through them collides.
+    fn why_unplanned(&self, request: &PickRequest, e: robot::pick::PickError) -> WireError {
+        let ik_errors: Vec<String> = request
+            .grasps
+            .iter()
+            .filter_map(|g| self.work.ik.solve_near(&g.base_from_gripper, &request.start).err())
+            .map(|e| e.to_string())
+            .collect();
+        if ik_errors.len() == request.grasps.len() {
+            let first = ik_errors.first().cloned().unwrap_or_default();
+            WireError::new(ErrorCode::Unreachable, format!("no grasp offered can be reached ({first}); {e}"))
+        } else {
+            WireError::new(ErrorCode::NoPath, e.to_string())
+        }
+    }
+
+    /// The planner's problem from what the request says, every field checked.
+    fn pick_request(&mut self, spec: &PickSpec) -> Result<PickRequest, WireError> {
+        let model = self.scn.library.models.get(&spec.model).ok_or_else(|| {
+            WireError::new(
+                ErrorCode::UnknownModel,
+                format!("no model `{}`; the library: {}", spec.model, self.model_names()),
+            )
+        })?;
+        if !self.scn.world.bins.iter().any(|b| b.name == spec.place.bin) {
+            let bins: Vec<&str> = self.scn.world.bins.iter().map(|b| b.name.as_str()).collect();
+            return Err(WireError::new(
+                ErrorCode::UnknownBin,
+                format!("no bin `{}`; the cell's: {}", spec.place.bin, bins.join(", ")),
+            ));
+        }
+        let jaw = spec.grasp.jaw_mm * 1e-3;
+        let max = self.work.arm.max_opening();
+        if !(jaw.is_finite() && jaw > 0.0 && jaw <= max) {
+            return Err(WireError::new(
+                ErrorCode::BadRequest,
+                format!("`grasp.jaw_mm` must be in (0, {:.0}], got {}", max * 1e3, spec.grasp.jaw_mm),
+            ));
+        }
+        let (frame, pose) = spec.grasp.pose().in_frames("grasp", &[Frame::Base, Frame::Cam])?;
+        let base_from_gripper = self.in_base(frame, pose)?;
+        let base_from_model = match &spec.object {
+            Some(o) => {
+                let (frame, pose) = o.in_frames("object", &[Frame::Base, Frame::Cam])?;
+                self.in_base(frame, pose)?
+            }
+            // The model's grasp of the nearest jaw opening says where the object must be.
+            None => {
+                let g = model
+                    .grasps
+                    .iter()
+                    .min_by(|a, b| (a.opening - jaw).abs().total_cmp(&(b.opening - jaw).abs()))
+                    .ok_or_else(|| {
+                        WireError::new(ErrorCode::BadRequest, format!("model `{}` has no grasps", model.name))
+                    })?;
+                base_from_gripper * g.model_from_gripper.inverse()
+            }
+        };
+        let mut obstacles = static_obstacles(self.scn, self.work);
+        for (k, o) in spec.obstacles.iter().enumerate() {
+            let other = self.scn.library.models.get(&o.model).ok_or_else(|| {
+                WireError::new(ErrorCode::UnknownModel, format!("`obstacles[{k}].model`: no model `{}`", o.model))
+            })?;
+            let (frame, pose) = o.pose.in_frames(&format!("obstacles[{k}].pose"), &[Frame::Base, Frame::Cam])?;
+            obstacles.push(Obstacle {
+                name: format!("{} (obstacle {k})", o.model),
+                shape: collision_shape(other),
+                base_from_shape: self.in_base(frame, pose)?,
+            });
+        }
+        // The grasp asked for first (and its equivalent holds), then the model's others.
+        let mut grasps: Vec<GraspCandidate> = grasp_variants(&base_from_gripper)
+            .into_iter()
+            .map(|g| GraspCandidate { base_from_gripper: g, width: jaw })
+            .collect();
+        if spec.object.is_some() {
+            grasps.extend(grasp_candidates(model, &base_from_model));
+        }
+        let bin = self.scn.world.bins.iter().find(|b| b.name == spec.place.bin).expect("checked above");
+        self.motions += 1;
+        Ok(PickRequest {
+            grasps,
+            target: Obstacle {
+                name: format!("the {} picked", model.name),
+                shape: collision_shape(model),
+                base_from_shape: base_from_model,
+            },
+            obstacles,
+            place: place_target(self.work, bin),
+            start: self.joints(),
+            seed: self.motion_seed(),
+        })
+    }
+
+    fn model_names(&self) -> String {
+        self.scn.library.names().collect::<Vec<_>>().join(", ")
+    }
+
+    /// The simulation's truth, for evaluation only.
+    fn truth(&self) -> TruthReply {
+        let objects = self
+            .pick
+            .objects
+            .iter()
+            .map(|(id, model, body)| TruthObject {
+                id: *id,
+                model: model.clone(),
+                world_from_model: WirePose::new(None, &self.pick.cell.pose(*body)),
+                in_bin: self.pick.inside_any_bin(*body),
+            })
+            .collect();
+        let world_from_cam = self.calib.left.world_from_cam;
+        TruthReply {
+            objects,
+            world_from_base: WirePose::new(None, &self.work.world_from_base),
+            world_from_cam: WirePose::new(None, &world_from_cam),
+            cam_from_base: WirePose::new(None, &(world_from_cam.inverse() * self.work.world_from_base)),
+        }
+    }
+}
+
+/// What the stereo head knows of itself: intrinsics, and the right camera in the left's frame.
+pub fn rig_calibration(calib: &StereoCalibration) -> RigCalibration {
+    let intrinsics =
+        |c: &PinholeCamera| Intrinsics { width: c.width, height: c.height, fx: c.fx, fy: c.fy, cx: c.cx, cy: c.cy };
+    let left_from_right = calib.left.world_from_cam.inverse() * calib.right.world_from_cam;
+    RigCalibration {
+        left: intrinsics(&calib.left),
+        right: intrinsics(&calib.right),
+        left_from_right: WirePose::new(None, &left_from_right),
+    }
+}
+
+/// A reply as the JSON fields it adds to `{"id":..,"ok":true}`.
+fn json<T: serde::Serialize>(reply: Result<T, WireError>) -> Result<Value, WireError> {
+    reply.map(|r| serde_json::to_value(r).expect("replies serialise"))
+}
+
+fn png_b64(pixels: &[u8], width: usize, height: usize) -> Result<String, WireError> {
+    use image::ImageEncoder;
+    let mut png = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut png)
+        .write_image(pixels, width as u32, height as u32, image::ExtendedColorType::L8)
+        .map_err(|e| WireError::new(ErrorCode::Internal, format!("encoding the image: {e}")))?;
+    Ok(base64::engine::general_purpose::STANDARD.encode(png))
+}
