@@ -2,8 +2,8 @@
 //! connection, one request at a time. Used by the command line and the end-to-end run.
 
 use crate::protocol::{
-    CaptureReply, HelloReply, MoveReply, MoveTarget, PROTOCOL, PickReply, PickSpec, Request, StatusReply, TruthReply,
-    WireError, WirePose,
+    CaptureReply, HelloReply, MoveReply, MoveTarget, PROTOCOL, PickReply, PickSpec, Request, StatusReply, ToolReply,
+    TruthReply, WireError, WirePose,
 };
 use serde::de::DeserializeOwned;
 use serde_json::Value;
@@ -122,6 +122,14 @@ impl Client {
 
     pub fn pick(&mut self, spec: PickSpec) -> Result<PickReply, ClientError> {
         self.call(&Request::Pick(spec))
+    }
+
+    pub fn take_tool(&mut self, tool: &str) -> Result<ToolReply, ClientError> {
+        self.call(&Request::TakeTool { tool: tool.to_string() })
+    }
+
+    pub fn stow_tool(&mut self) -> Result<ToolReply, ClientError> {
+        self.call(&Request::StowTool {})
     }
 
     pub fn home(&mut self) -> Result<MoveReply, ClientError> {

@@ -34,22 +34,78 @@ impl DisparityStats {
     }
 }
 
+/// The left image's pixels on the arm (or the tool it holds) or within [`ARM_MARGIN_PX`] of it.
+/// The cameras see the robot's column; its silhouettes, a box seen nearly edge-on, show the two
+/// cameras different corners, so stereo gives them disparities 10 px off. The front end's
+/// figures describe the workspace; what falls on the arm is counted apart.
+#[derive(Debug, Clone)]
+pub struct ArmMask {
+    width: usize,
+    height: usize,
+    near: Vec<bool>,
+}
+
+/// How far round the arm's pixels the mask reaches: an edgel on its silhouette may lie on the
+/// table's side of it.
+pub const ARM_MARGIN_PX: usize = 3;
+
+impl ArmMask {
+    /// From the left frame's id map.
+    pub fn from_ids(width: usize, height: usize, ids: &[u16]) -> ArmMask {
+        let on_arm = |i: usize| ids[i] as u32 >= sim::render::ARM_ID_BASE || ids[i] as u32 == sim::render::TOOL_ID;
+        let mut near = vec![false; width * height];
+        let m = ARM_MARGIN_PX as isize;
+        for y in 0..height {
+            for x in 0..width {
+                if !on_arm(y * width + x) {
+                    continue;
+                }
+                for dy in -m..=m {
+                    for dx in -m..=m {
+                        let (xx, yy) = (x as isize + dx, y as isize + dy);
+                        if (0..width as isize).contains(&xx) && (0..height as isize).contains(&yy) {
+                            near[yy as usize * width + xx as usize] = true;
+                        }
+                    }
+                }
+            }
+        }
+        ArmMask { width, height, near }
+    }
+
+    /// Whether pixel `(x, y)` lies on or near the arm.
+    pub fn covers(&self, x: f64, y: f64) -> bool {
+        let (xi, yi) = (x.round(), y.round());
+        xi >= 0.0
+            && yi >= 0.0
+            && (xi as usize) < self.width
+            && (yi as usize) < self.height
+            && self.near[yi as usize * self.width + xi as usize]
+    }
+}
+
 /// Compares every match's disparity with the true one at its left edgel (the nearer surface's
-/// at an occluding boundary).
-pub fn disparity_stats(fe: &FrontEnd, truth: &TruthScene, calib: &StereoCalibration) -> DisparityStats {
+/// at an occluding boundary): the workspace's matches, and apart those on the arm.
+pub fn disparity_stats(
+    fe: &FrontEnd,
+    truth: &TruthScene,
+    calib: &StereoCalibration,
+    arm: &ArmMask,
+) -> (DisparityStats, DisparityStats) {
     let rect = Rectification::new(calib);
-    let mut stats = DisparityStats::default();
+    let (mut workspace, mut on_arm) = (DisparityStats::default(), DisparityStats::default());
     for m in &fe.matches {
         let e = &fe.left.edgels[m.left as usize];
         let Some(d) = truth.disparity(&calib.left, &rect, e.x as f64, e.y as f64, e.orientation as f64) else {
             continue;
         };
         let err = (m.disparity as f64 - d).abs();
+        let stats = if arm.covers(e.x as f64, e.y as f64) { &mut on_arm } else { &mut workspace };
         stats.evaluated += 1;
         stats.within_0_5px += usize::from(err <= 0.5);
         stats.wrong += usize::from(err > 2.0);
     }
-    stats
+    (workspace, on_arm)
 }
 
 /// How the 3D lines compare with the models' true feature edges.
@@ -61,6 +117,8 @@ pub struct LineStats {
     /// 3D line recovered, metres.
     pub visible_m: f64,
     pub recovered_m: f64,
+    /// 3D lines on the arm, left out of the above.
+    pub arm_lines: usize,
 }
 
 impl LineStats {
@@ -68,6 +126,7 @@ impl LineStats {
         self.endpoint_err_mm.extend_from_slice(&other.endpoint_err_mm);
         self.visible_m += other.visible_m;
         self.recovered_m += other.recovered_m;
+        self.arm_lines += other.arm_lines;
     }
 
     pub fn coverage(&self) -> f64 {
@@ -108,6 +167,7 @@ pub fn line_stats(
     library: &mesh::Library,
     calib: &StereoCalibration,
     left_depth: &[f32],
+    arm: &ArmMask,
 ) -> LineStats {
     let cam = &calib.left;
     let edges: Vec<(Point3<f64>, Point3<f64>)> = scene
@@ -120,8 +180,21 @@ pub fn line_stats(
             })
         })
         .collect();
-    let lines: Vec<(Point3<f64>, Point3<f64>)> = fe.lines3d.iter().map(|l| (l.start(), l.end())).collect();
+    // Lines on the arm are no model's feature edges: counted apart.
+    let on_arm = |a: &Point3<f64>, b: &Point3<f64>| {
+        cam.project_cam(&nalgebra::center(a, b)).is_some_and(|px| arm.covers(px.x, px.y))
+    };
     let mut stats = LineStats::default();
+    let lines: Vec<(Point3<f64>, Point3<f64>)> = fe
+        .lines3d
+        .iter()
+        .map(|l| (l.start(), l.end()))
+        .filter(|(a, b)| {
+            let arm_line = on_arm(a, b);
+            stats.arm_lines += usize::from(arm_line);
+            !arm_line
+        })
+        .collect();
     for (a, b) in &lines {
         for p in [a, b] {
             let nearest = edges.iter().map(|(ea, eb)| point_segment_distance(p, ea, eb)).fold(f64::MAX, f64::min);
@@ -183,48 +256,7 @@ fn visible(px: &nalgebra::Point2<f64>, z: f64, depth: &[f32], cam: &mesh::Pinhol
     own && !occluded
 }
 
-/// The rotations that map a model onto itself (about its centre of mass): found by trying turns
-/// of 1/2, 1/3, 1/4 and 1/6 about its principal axes and keeping those that carry every
-/// wireframe edge onto an edge. Always holds the identity.
-pub fn symmetries(model: &mesh::Model) -> Vec<nalgebra::Isometry3<f64>> {
-    use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
-    let c = model.mass.centre_of_mass;
-    let axes = model.mass.inertia.symmetric_eigen().eigenvectors;
-    let about = |r: UnitQuaternion<f64>| Translation3::from(c.coords) * r * Translation3::from(-c.coords);
-    let maps_onto_itself = |g: &Isometry3<f64>| {
-        model.wireframe.iter().all(|s| {
-            let (a, b) = (g * s.a, g * s.b);
-            model.wireframe.iter().any(|t| {
-                ((a - t.a).norm() < 1e-4 && (b - t.b).norm() < 1e-4)
-                    || ((a - t.b).norm() < 1e-4 && (b - t.a).norm() < 1e-4)
-            })
-        })
-    };
-    let mut out = vec![Isometry3::identity()];
-    for k in 0..3 {
-        let axis = nalgebra::Unit::new_normalize(Vector3::from(axes.column(k)));
-        for n in [2u32, 3, 4, 6] {
-            for m in 1..n {
-                let g = about(UnitQuaternion::from_axis_angle(&axis, std::f64::consts::TAU * m as f64 / n as f64));
-                let new = out.iter().all(|h| (h.to_homogeneous() - g.to_homogeneous()).norm() > 1e-6);
-                if new && maps_onto_itself(&g) {
-                    out.push(g);
-                }
-            }
-        }
-    }
-    // Products of the turns found (e.g. 180 deg about two axes give the third).
-    let found = out.clone();
-    for a in &found {
-        for b in &found {
-            let g = a * b;
-            if out.iter().all(|h| (h.to_homogeneous() - g.to_homogeneous()).norm() > 1e-6) && maps_onto_itself(&g) {
-                out.push(g);
-            }
-        }
-    }
-    out
-}
+pub use mesh::model::symmetries;
 
 /// Position (m, of the model origin) and rotation (rad) error of a located pose, the smallest
 /// over the model's symmetries.

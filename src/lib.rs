@@ -6,13 +6,19 @@
 //! - [`eval`]: the front end's results against that truth.
 //! - [`pick`]: physical pick and place: the arm in the rapier cell, plans executed by its
 //!   motors, outcomes judged from the physics.
+//! - [`perception`]: what a capture becomes: images, the stereo head's calibration, the front
+//!   end's output, located parts or the calibration flag.
 //! - [`server`]: the robot server: the simulated cell behind a TCP socket.
+//! - [`calibrate`]: hand-eye calibration through the robot server: the flag carried to poses,
+//!   seen, located, and the sightings solved.
 //! - [`client`]: a typed client of the robot server.
 //! - [`protocol`]: protocol v1 between the MARVIN side and the robot server, as typed
 //!   requests and replies shared by both.
 
+pub mod calibrate;
 pub mod client;
 pub mod eval;
+pub mod perception;
 pub mod pick;
 pub mod protocol;
 pub mod server;

@@ -3,7 +3,7 @@
 
 mod cli;
 
-use cli::{bench, edges, eval, locate, pick, render, serve, stereo};
+use cli::{bench, calibrate, edges, eval, locate, pick, render, serve, stereo};
 
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
@@ -151,6 +151,30 @@ enum Command {
         #[arg(long, default_value_t = marvin::protocol::IDLE_TIMEOUT_S)]
         idle_timeout_s: f64,
     },
+    /// Hand-eye calibration: the arm holds the calibration flag at poses over the workspace the
+    /// cameras see, vision locates it, and least squares solves `cam_from_base` (and the flag
+    /// in the gripper). Through the robot server: one started here on loopback for the world,
+    /// or the one at --connect (MARVIN_TOKEN gives its token).
+    ///
+    /// Writes FILE (`cam_from_base`, `gripper_from_flag`, covariance, residuals, sightings used)
+    /// for `marvin serve --hand-eye`. With --json prints the sightings, the result, and (with a
+    /// server started here) the truth and the error against it, computed after the solve.
+    Calibrate {
+        world: PathBuf,
+        /// Poses visited.
+        #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u16).range(3..=500))]
+        poses: u16,
+        /// Seed of the scene and the poses (default: the world file's).
+        #[arg(long)]
+        seed: Option<u64>,
+        /// A running robot server (`marvin serve`) instead of one started here.
+        #[arg(long)]
+        connect: Option<String>,
+        #[arg(long, default_value = "out/hand_eye.json")]
+        out: PathBuf,
+        #[arg(long)]
+        json: bool,
+    },
     /// Run seeded scenes through the pipeline and compare with ground truth.
     Eval {
         #[command(subcommand)]
@@ -177,6 +201,9 @@ fn main() -> std::process::ExitCode {
         }
         Command::Serve { world, seed, listen, token_file, hand_eye, truth, idle_timeout_s } => {
             serve::run(serve::ServeArgs { world, seed, listen, token_file, hand_eye, truth, idle_timeout_s })
+        }
+        Command::Calibrate { world, poses, seed, connect, out, json } => {
+            calibrate::run(calibrate::CalibrateArgs { world, poses: poses as usize, seed, connect, out, json })
         }
         Command::Eval { what } => eval::run(what),
         Command::Bench { what } => bench::run(what),

@@ -111,7 +111,7 @@ impl<'a> PickCell<'a> {
         self.simulated_s += self.dt();
     }
 
-    fn run_for(&mut self, seconds: f64) {
+    pub fn run_for(&mut self, seconds: f64) {
         for _ in 0..(seconds / self.dt()).ceil() as usize {
             self.step();
         }
@@ -313,7 +313,7 @@ impl<'a> PickCell<'a> {
     }
 
     /// Commands the fingers and waits until they stop moving.
-    fn grip(&mut self, opening: f64) {
+    pub fn grip(&mut self, opening: f64) {
         self.arm.grip(&mut self.cell, opening);
         let mut last = self.arm.opening(&self.cell);
         let (mut t, mut calm) = (0.0, 0.0);

@@ -241,6 +241,12 @@ pub enum Request {
         cam_from_base: WirePose,
     },
     Pick(PickSpec),
+    /// The operator hands a tool (the calibration flag) into the gripper, which closes on it.
+    TakeTool {
+        tool: String,
+    },
+    /// The gripper opens and the operator takes the tool away.
+    StowTool {},
     Home {},
     Shutdown {},
     Bye {},
@@ -249,8 +255,20 @@ pub enum Request {
 }
 
 /// Every op, as requests name them.
-pub const OPS: [&str; 10] =
-    ["hello", "status", "capture", "move", "set_hand_eye", "pick", "home", "shutdown", "bye", "truth"];
+pub const OPS: [&str; 12] = [
+    "hello",
+    "status",
+    "capture",
+    "move",
+    "set_hand_eye",
+    "pick",
+    "take_tool",
+    "stow_tool",
+    "home",
+    "shutdown",
+    "bye",
+    "truth",
+];
 
 impl Request {
     pub fn op(&self) -> &'static str {
@@ -261,6 +279,8 @@ impl Request {
             Request::Move(_) => "move",
             Request::SetHandEye { .. } => "set_hand_eye",
             Request::Pick(_) => "pick",
+            Request::TakeTool { .. } => "take_tool",
+            Request::StowTool {} => "stow_tool",
             Request::Home {} => "home",
             Request::Shutdown {} => "shutdown",
             Request::Bye {} => "bye",
@@ -270,7 +290,10 @@ impl Request {
 
     /// Whether the op moves the arm (one such at a time).
     pub fn is_motion(&self) -> bool {
-        matches!(self, Request::Move(_) | Request::Pick(_) | Request::Home {})
+        matches!(
+            self,
+            Request::Move(_) | Request::Pick(_) | Request::Home {} | Request::TakeTool { .. } | Request::StowTool {}
+        )
     }
 }
 
@@ -401,6 +424,15 @@ pub struct MoveReply {
     pub max_tracking_error: f64,
 }
 
+/// `take_tool`'s and `stow_tool`'s reply.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ToolReply {
+    /// The tool in the gripper now, if any.
+    pub holding: Option<String>,
+    /// The jaws' opening now, mm.
+    pub jaw_mm: f64,
+}
+
 /// How a pick went, judged from the cell: `placed`, `miss`, `slip`, `drop`, `outside_bin`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -442,6 +474,8 @@ pub struct TruthObject {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct TruthReply {
     pub objects: Vec<TruthObject>,
+    /// Where the held tool sits in the gripper (`gripper_from_tool`), from the physics.
+    pub tool_in_gripper: Option<WirePose>,
     pub world_from_base: WirePose,
     pub world_from_cam: WirePose,
     pub cam_from_base: WirePose,

@@ -6,8 +6,11 @@
 //! measures it -- it solves `cam_from_base` and `gripper_from_flag` together, from
 //! `cam_from_flag = cam_from_base * base_from_gripper * gripper_from_flag`:
 //!
+//! - [`sighting`]: one sighting: the gripper pose the robot reports, the flag pose vision sees.
 //! - [`motion`]: whether the sightings can determine the answer at all (enough of them, turning
 //!   the gripper about more than one axis), and if not, what motion is missing.
+//! - [`symmetry`]: a symmetric flag's readings made to agree (it is seen only up to its
+//!   symmetry, and not the same way in every sighting).
 //! - [`closed_form`]: a closed-form start: `AX = XB` on the relative motions (rotation from
 //!   their axes, then translation, by linear least squares), then the flag in the gripper.
 //! - [`refine`]: nonlinear least squares (Levenberg-Marquardt) on the flag's points, and the
@@ -24,7 +27,9 @@ pub mod file;
 pub mod motion;
 pub mod pose;
 pub mod refine;
+pub mod sighting;
 pub mod solve;
+pub mod symmetry;
 
 pub use file::HandEyeFile;
 pub use pose::PoseJson;

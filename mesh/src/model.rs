@@ -9,7 +9,7 @@ use crate::extrude::Extrusion;
 use crate::mass::{MassProperties, mass_properties};
 use crate::pose::from_position_rpy_deg;
 use crate::trimesh::TriMesh;
-use crate::wireframe::{FEATURE_ANGLE_DEG, Segment3, feature_edges};
+use crate::wireframe::{FEATURE_ANGLE_DEG, Segment3, feature_edges, marking_edges};
 use nalgebra::{Isometry3, Point2, Point3};
 use serde::Deserialize;
 use std::path::Path;
@@ -78,6 +78,9 @@ pub struct Model {
     pub mesh: TriMesh,
     pub collision: Collision,
     pub wireframe: Vec<Segment3>,
+    /// Lines of the surface's pattern (the flag's checker), seen as edges though no solid edge
+    /// lies there; empty for plain parts.
+    pub markings: Vec<Segment3>,
     pub mass: MassProperties,
     pub grasps: Vec<Grasp>,
 }
@@ -128,6 +131,7 @@ impl Model {
             name: spec.name.clone(),
             description: spec.description.clone(),
             wireframe: feature_edges(&mesh, FEATURE_ANGLE_DEG),
+            markings: marking_edges(&mesh, FEATURE_ANGLE_DEG),
             mass: mass_properties(&mesh, spec.density_kg_m3),
             collision,
             mesh,
@@ -140,4 +144,47 @@ impl Model {
         let (lo, hi) = self.mesh.bounds().expect("a built model has vertices");
         hi - lo
     }
+}
+
+/// The rotations that map a model onto itself (about its centre of mass): found by trying turns
+/// of 1/2, 1/3, 1/4 and 1/6 about its principal axes and keeping those that carry every
+/// wireframe edge onto an edge. Always holds the identity.
+pub fn symmetries(model: &Model) -> Vec<nalgebra::Isometry3<f64>> {
+    use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+    let c = model.mass.centre_of_mass;
+    let axes = model.mass.inertia.symmetric_eigen().eigenvectors;
+    let about = |r: UnitQuaternion<f64>| Translation3::from(c.coords) * r * Translation3::from(-c.coords);
+    let maps_onto_itself = |g: &Isometry3<f64>| {
+        model.wireframe.iter().all(|s| {
+            let (a, b) = (g * s.a, g * s.b);
+            model.wireframe.iter().any(|t| {
+                ((a - t.a).norm() < 1e-4 && (b - t.b).norm() < 1e-4)
+                    || ((a - t.b).norm() < 1e-4 && (b - t.a).norm() < 1e-4)
+            })
+        })
+    };
+    let mut out = vec![Isometry3::identity()];
+    for k in 0..3 {
+        let axis = nalgebra::Unit::new_normalize(Vector3::from(axes.column(k)));
+        for n in [2u32, 3, 4, 6] {
+            for m in 1..n {
+                let g = about(UnitQuaternion::from_axis_angle(&axis, std::f64::consts::TAU * m as f64 / n as f64));
+                let new = out.iter().all(|h| (h.to_homogeneous() - g.to_homogeneous()).norm() > 1e-6);
+                if new && maps_onto_itself(&g) {
+                    out.push(g);
+                }
+            }
+        }
+    }
+    // Products of the turns found (e.g. 180 deg about two axes give the third).
+    let found = out.clone();
+    for a in &found {
+        for b in &found {
+            let g = a * b;
+            if out.iter().all(|h| (h.to_homogeneous() - g.to_homogeneous()).norm() > 1e-6) && maps_onto_itself(&g) {
+                out.push(g);
+            }
+        }
+    }
+    out
 }

@@ -53,6 +53,73 @@ pub fn feature_edges(mesh: &TriMesh, min_angle_deg: f64) -> Vec<Segment3> {
     merge_collinear(mesh, &edges)
 }
 
+/// Markings: where the albedo changes across a flat face (a face's pattern, such as the
+/// calibration flag's checker), merged into straight segments through the pattern's crossings.
+/// They are lines a camera sees as well as the feature edges, though no solid edge lies there.
+pub fn marking_edges(mesh: &TriMesh, min_angle_deg: f64) -> Vec<Segment3> {
+    let mut faces_of_edge: HashMap<(u32, u32), Vec<usize>> = HashMap::new();
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (tri[k], tri[(k + 1) % 3]);
+            faces_of_edge.entry((a.min(b), a.max(b))).or_default().push(t);
+        }
+    }
+    let cos_min = min_angle_deg.to_radians().cos();
+    let mut edges: Vec<(u32, u32)> = faces_of_edge
+        .iter()
+        .filter(|(_, faces)| match faces.as_slice() {
+            [f, g] => {
+                mesh.face_normal(*f).dot(&mesh.face_normal(*g)) > cos_min
+                    && (mesh.albedo[*f] - mesh.albedo[*g]).abs() > MARKING_CONTRAST
+            }
+            _ => false,
+        })
+        .map(|(&e, _)| e)
+        .collect();
+    edges.sort_unstable();
+    merge_straight(mesh, &edges)
+}
+
+/// Albedo difference across an edge for it to be a marking.
+const MARKING_CONTRAST: f32 = 0.1;
+
+/// Joins edges that continue each other in a straight line, through any vertex.
+fn merge_straight(mesh: &TriMesh, edges: &[(u32, u32)]) -> Vec<Segment3> {
+    let mut at_vertex: HashMap<u32, Vec<usize>> = HashMap::new();
+    for (i, &(a, b)) in edges.iter().enumerate() {
+        at_vertex.entry(a).or_default().push(i);
+        at_vertex.entry(b).or_default().push(i);
+    }
+    let p = |v: u32| mesh.vertices[v as usize];
+    let mut used = vec![false; edges.len()];
+    let mut out = Vec::new();
+    for start in 0..edges.len() {
+        if used[start] {
+            continue;
+        }
+        used[start] = true;
+        let (a, b) = edges[start];
+        let dir = (p(b) - p(a)).normalize();
+        let mut ends = [a, b];
+        for (end, sign) in [(1usize, 1.0), (0usize, -1.0)] {
+            loop {
+                let here = ends[end];
+                let straight_on = at_vertex[&here].iter().copied().find(|&e| {
+                    let (x, y) = edges[e];
+                    let far = if x == here { y } else { x };
+                    !used[e] && (p(far) - p(here)).normalize().dot(&dir) * sign > 1.0 - 1e-9
+                });
+                let Some(next) = straight_on else { break };
+                let (x, y) = edges[next];
+                used[next] = true;
+                ends[end] = if x == here { y } else { x };
+            }
+        }
+        out.push(Segment3 { a: p(ends[0]), b: p(ends[1]) });
+    }
+    out
+}
+
 /// Joins feature edges that continue each other in a straight line through a vertex that
 /// no other feature edge touches.
 fn merge_collinear(mesh: &TriMesh, edges: &[(u32, u32)]) -> Vec<Segment3> {
@@ -99,6 +166,19 @@ mod tests {
     use super::*;
     use crate::extrude::Extrusion;
     use nalgebra::Point2;
+
+    /// The flag's 6 x 4 checker: 5 lines across and 3 along on each face, each whole.
+    #[test]
+    fn a_checker_s_markings_are_its_grid_lines_whole() {
+        let plate = [[-0.03, -0.02], [0.03, -0.02], [0.03, 0.02], [-0.03, 0.02]].map(|[x, y]| Point2::new(x, y));
+        let m = Extrusion::new(plate.to_vec(), 0.004).unwrap().checker_mesh([6, 4], 0.9).unwrap();
+        let marks = marking_edges(&m, FEATURE_ANGLE_DEG);
+        assert_eq!(marks.len(), 2 * (5 + 3), "{marks:?}");
+        let across = marks.iter().filter(|s| (s.length() - 0.04).abs() < 1e-12).count();
+        let along = marks.iter().filter(|s| (s.length() - 0.06).abs() < 1e-12).count();
+        assert_eq!((across, along), (10, 6));
+        assert!(marking_edges(&TriMesh::cuboid(Vector3::new(0.01, 0.01, 0.01), 0.5), FEATURE_ANGLE_DEG).is_empty());
+    }
 
     #[test]
     fn a_box_has_twelve_feature_edges_of_the_right_lengths() {

@@ -61,6 +61,10 @@ pub fn hold_without_ccd(cell: &mut Cell, body: RigidBodyHandle) {
     cell.world.bodies[body].enable_ccd(false);
 }
 
+/// Albedo of the arm's links (anodised grey) and of its fingers.
+const LINK_ALBEDO: f32 = 0.35;
+const FINGER_ALBEDO: f32 = 0.6;
+
 /// Handles of the arm's parts in the cell.
 pub struct SimArm {
     joints: [MultibodyJointHandle; 6],
@@ -70,8 +74,9 @@ pub struct SimArm {
     effort: [f32; 6],
     gripper_body: RigidBodyHandle,
     gripper_from_tcp: Isometry3<f64>,
-    /// Rigid bodies of the arm's links (for contact queries).
+    /// Rigid bodies of the arm's links (for contact queries), and their URDF link names.
     pub bodies: Vec<RigidBodyHandle>,
+    pub link_names: Vec<String>,
     pub finger_bodies: [RigidBodyHandle; 2],
     pub world_from_base: Isometry3<f64>,
 }
@@ -137,6 +142,7 @@ impl SimArm {
             gripper_body: body(GRIPPER_LINK)?,
             gripper_from_tcp,
             bodies: handles.links.iter().map(|l| l.body).collect(),
+            link_names: link_names.clone(),
             finger_bodies: [body(FINGER_JOINTS[0])?, body(FINGER_JOINTS[1])?],
             world_from_base: *world_from_base,
         };
@@ -219,6 +225,27 @@ impl SimArm {
     }
 
     /// The gripper (tool centre point) frame in the world, as simulated.
+    /// Each link's collision shapes as one mesh in the world, where the simulation has them
+    /// now, with the link's name: how the cameras see the arm (the URDF has no visual shapes).
+    /// Fingers are lighter than the rest.
+    pub fn link_meshes(&self, cell: &Cell) -> Vec<(String, mesh::TriMesh)> {
+        self.bodies
+            .iter()
+            .zip(&self.link_names)
+            .map(|(&body, name)| {
+                let albedo = if self.finger_bodies.contains(&body) { FINGER_ALBEDO } else { LINK_ALBEDO };
+                let mut mesh = mesh::TriMesh::default();
+                for &c in cell.world.bodies[body].colliders() {
+                    if let Some(m) = crate::shape_mesh::collider_mesh(&cell.world.colliders[c], albedo) {
+                        mesh.append(&m);
+                    }
+                }
+                (name.clone(), mesh)
+            })
+            .filter(|(_, m)| !m.triangles.is_empty())
+            .collect()
+    }
+
     pub fn world_from_gripper(&self, cell: &Cell) -> Isometry3<f64> {
         convert::iso(cell.world.bodies[self.gripper_body].position()) * self.gripper_from_tcp
     }

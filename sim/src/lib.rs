@@ -10,6 +10,7 @@
 //! - [`render`]: the CPU renderer: anti-aliased, shaded, noisy 8-bit grey images, with depth
 //!   and object-id maps.
 //! - [`record`]: `scene.json`, the calibration and ground truth written next to the images.
+//! - [`shape_mesh`]: colliders' primitives as triangle meshes, to draw the arm.
 //! - [`convert`]: nalgebra <-> rapier (glam) conversions, kept in one place.
 //!
 //! Frames: `world` has its origin at the centre of the table top, `z` up.
@@ -21,6 +22,7 @@ pub mod record;
 pub mod render;
 pub mod rig;
 pub mod scene;
+pub mod shape_mesh;
 pub mod world;
 
 pub use scene::{Scenario, Scene};

@@ -90,6 +90,18 @@ impl Cell {
 
     /// Adds a dynamic body for `model` at `world_from_model`; the body frame is the model frame.
     pub fn add_object(&mut self, model: &Model, world_from_model: &Isometry3<f64>) -> RigidBodyHandle {
+        let handle = self.add_body(model, world_from_model);
+        self.objects.push(handle);
+        handle
+    }
+
+    /// A body of `model` that is not one of the scene's objects (settling ignores it): a tool
+    /// handed into the gripper.
+    pub fn add_tool(&mut self, model: &Model, world_from_model: &Isometry3<f64>) -> RigidBodyHandle {
+        self.add_body(model, world_from_model)
+    }
+
+    fn add_body(&mut self, model: &Model, world_from_model: &Isometry3<f64>) -> RigidBodyHandle {
         let mp = &model.mass;
         let mass = MassProperties::with_inertia_matrix(
             convert::point(&mp.centre_of_mass),
@@ -103,8 +115,13 @@ impl Cell {
         let collider =
             ColliderBuilder::new(collision_shape(model)).density(0.0).friction(self.friction).restitution(0.05);
         let (handle, _) = self.world.insert(body, collider);
-        self.objects.push(handle);
         handle
+    }
+
+    /// Takes a body (and its collider) out of the world.
+    pub fn remove(&mut self, body: RigidBodyHandle) {
+        self.world.remove_body(body);
+        self.objects.retain(|&b| b != body);
     }
 
     pub fn pose(&self, body: RigidBodyHandle) -> Isometry3<f64> {

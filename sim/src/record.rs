@@ -1,6 +1,7 @@
 //! `scene.json`: the calibration the vision pipeline reads, and the ground truth that only
 //! evaluation code may read, written beside the rendered images.
 
+use crate::render::{ARM_ID_BASE, TOOL_ID, arm_link_id};
 use crate::scene::{Scenario, Scene};
 use mesh::StereoCalibration;
 use nalgebra::Isometry3;
@@ -18,6 +19,8 @@ pub struct SceneRecord {
     pub calibration: StereoCalibration,
     /// Ground truth, for evaluation only.
     pub objects: Vec<ObjectRecord>,
+    /// The arm's links as the id maps show them (ground truth too: where the arm stood).
+    pub arm_links: Vec<LinkRecord>,
     pub depth_unit_m: f64,
     pub id_map: String,
     pub settle: crate::physics::SettleReport,
@@ -32,6 +35,13 @@ pub struct ObjectRecord {
     pub world_from_model: Isometry3<f64>,
 }
 
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct LinkRecord {
+    pub id: u32,
+    /// The URDF link's name.
+    pub link: String,
+}
+
 impl SceneRecord {
     pub fn new(scn: &Scenario, scene: &Scene, calibration: &StereoCalibration) -> SceneRecord {
         SceneRecord {
@@ -43,8 +53,16 @@ impl SceneRecord {
                 .iter()
                 .map(|o| ObjectRecord { id: o.id, model: o.model.clone(), world_from_model: o.world_from_model })
                 .collect(),
+            arm_links: scene
+                .arm
+                .iter()
+                .enumerate()
+                .map(|(k, (link, _))| LinkRecord { id: arm_link_id(k), link: link.clone() })
+                .collect(),
             depth_unit_m: DEPTH_UNIT_M,
-            id_map: "16-bit PNG; each pixel holds the id of the object seen at its centre, 0 for the table, floor, bins or nothing".into(),
+            id_map: format!(
+                "16-bit PNG; each pixel holds the id of what is seen at its centre: objects from 1, the held tool {TOOL_ID}, the arm's links from {ARM_ID_BASE} (arm_links), 0 for the table, floor, bins or nothing"
+            ),
             settle: scene.settle,
         }
     }

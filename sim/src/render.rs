@@ -57,6 +57,16 @@ struct ShadedTriangle {
 }
 
 /// Everything to draw, shaded once (Lambertian shading does not depend on the viewpoint).
+/// Id-map value of the arm's `k`-th link (in the order `scene.json` lists them).
+pub fn arm_link_id(k: usize) -> u32 {
+    ARM_ID_BASE + k as u32
+}
+
+/// The arm's links have ids from here on; objects have ids from 1.
+pub const ARM_ID_BASE: u32 = 1000;
+/// Id-map value of the tool the gripper holds (the calibration flag).
+pub const TOOL_ID: u32 = 999;
+
 #[derive(Debug, Clone, Default)]
 pub struct RenderScene {
     triangles: Vec<ShadedTriangle>,

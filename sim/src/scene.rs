@@ -84,6 +84,9 @@ pub struct Scene {
     pub seed: u64,
     pub statics: Vec<StaticBox>,
     pub objects: Vec<SceneObject>,
+    /// The arm's links where it stood (at home) while the scene settled, by URDF link name: the
+    /// cameras see it too.
+    pub arm: Vec<(String, TriMesh)>,
     pub settle: SettleReport,
 }
 
@@ -111,11 +114,11 @@ impl Scene {
         let objects = initial_poses(scn, drop_seed);
         let statics = static_boxes(&scn.world);
         let mut cell = Cell::new(&scn.world.physics, &statics);
-        if let (Some(urdf), Some(spec)) = (&scn.robot_urdf, &scn.world.robot) {
+        let arm = scn.robot_urdf.as_ref().zip(scn.world.robot.as_ref()).map(|(urdf, spec)| {
             // Objects that roll up to the arm rest against it, not inside it.
             SimArm::insert(&mut cell, urdf, &spec.world_from_base(), &HOME, 0.0)
-                .expect("the URDF was checked on loading");
-        }
+                .expect("the URDF was checked on loading")
+        });
         let bodies: Vec<_> =
             objects.iter().map(|o| cell.add_object(&scn.library.models[&o.model], &o.world_from_model)).collect();
         let settle = cell.settle(scn.world.physics.settle_limit_s);
@@ -124,15 +127,18 @@ impl Scene {
             .zip(bodies)
             .map(|(o, body)| SceneObject { world_from_model: cell.pose(body), ..o })
             .collect();
-        Scene { seed, statics, objects, settle }
+        let arm = arm.map(|a| a.link_meshes(&cell)).unwrap_or_default();
+        Scene { seed, statics, objects, arm, settle }
     }
 
-    /// Every surface in world coordinates, tagged with its id-map value (0 for static parts).
+    /// Every surface in world coordinates, tagged with its id-map value (0 for static parts,
+    /// [`crate::render::arm_link_id`] for the arm's links).
     pub fn world_meshes<'a>(&'a self, library: &'a Library) -> impl Iterator<Item = (u32, TriMesh)> + 'a {
         let statics = self.statics.iter().map(|b| (0, b.mesh()));
         let objects =
             self.objects.iter().map(|o| (o.id, library.models[&o.model].mesh.transformed(&o.world_from_model)));
-        statics.chain(objects)
+        let arm = self.arm.iter().enumerate().map(|(k, (_, m))| (crate::render::arm_link_id(k), m.clone()));
+        statics.chain(objects).chain(arm)
     }
 }
 

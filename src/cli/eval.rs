@@ -2,7 +2,7 @@
 
 use super::output::emit;
 use clap::Subcommand;
-use marvin::eval::{DisparityStats, LineStats, disparity_stats, line_stats};
+use marvin::eval::{ArmMask, DisparityStats, LineStats, disparity_stats, line_stats};
 use marvin::truth::TruthScene;
 use sim::render::{Light, RenderScene, render_stereo};
 use sim::{Scenario, Scene};
@@ -30,6 +30,26 @@ pub enum EvalTarget {
         /// Slices of the front end (1: whole images).
         #[arg(long, default_value_t = 8)]
         slices: usize,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Seeded hand-eye calibrations (each on its own scene, with its own poses and sensor noise),
+    /// each through a robot server started here, against the simulation's truth.
+    ///
+    /// JSON keys: `translation_err_mm_median`, `_p90`, `rotation_err_deg_median`, `_p90` (the
+    /// solved `cam_from_base` against the true one), `sightings_used_fraction` (poses whose
+    /// sighting the solve used), `flag_creep_mm_max`, `_median` (how far the flag moved in the
+    /// jaws between the first and last sighting, from the physics), `failed`.
+    Calibrate {
+        world: PathBuf,
+        #[arg(long, default_value_t = 10)]
+        trials: u64,
+        /// First seed; trial k uses seed + k.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Poses per calibration.
+        #[arg(long, default_value_t = 20)]
+        poses: usize,
         #[arg(long)]
         json: bool,
     },
@@ -73,11 +93,14 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
         EvalTarget::Vision { world, scenes, seed, slices, json } => (world, scenes, seed, slices, json),
         EvalTarget::Locate { world, scenes, seed, json } => return run_locate(&world, scenes, seed, json),
         EvalTarget::Pick { world, trials, seed, json } => return super::eval_pick::run(&world, trials, seed, json),
+        EvalTarget::Calibrate { world, trials, seed, poses, json } => {
+            return super::calibrate::eval(&world, trials, seed, poses, json);
+        }
     };
     let scn = Scenario::load(&world)?;
     let calib = sim::rig::calibration(&scn.world.cameras);
     let light = Light::from(&scn.world.light);
-    let mut total = DisparityStats::default();
+    let (mut total, mut on_arm) = (DisparityStats::default(), DisparityStats::default());
     let mut lines = LineStats::default();
     let mut timings: BTreeMap<&'static str, Vec<f64>> = BTreeMap::new();
     for k in 0..scenes {
@@ -98,8 +121,9 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
             marvin::front_end::run(&left, &right, &calib, &params)
         };
         let truth = TruthScene::new(scene.world_meshes(&scn.library).map(|(_, m)| m));
-        let stats = disparity_stats(&fe, &truth, &calib);
-        let line = line_stats(&fe, &scene, &scn.library, &calib, &l.depth);
+        let arm = ArmMask::from_ids(l.width, l.height, &l.ids);
+        let (stats, arm_stats) = disparity_stats(&fe, &truth, &calib, &arm);
+        let line = line_stats(&fe, &scene, &scn.library, &calib, &l.depth, &arm);
         eprintln!(
             "scene {}/{scenes} (seed {s}): {} matches, {:.3} within 0.5 px, {:.3} wrong; {} 3D lines, ends {:.2} mm median, coverage {:.2}",
             k + 1,
@@ -111,6 +135,7 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
             line.coverage()
         );
         total.add(&stats);
+        on_arm.add(&arm_stats);
         lines.add(&line);
         for (name, ms) in fe.timings_ms {
             timings.entry(name).or_default().push(ms);
@@ -132,6 +157,12 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
         "endpoint_err_mm_p90": lines.endpoint_quantile(0.9),
         "coverage": lines.coverage(),
         "lines3d_per_scene": lines.endpoint_err_mm.len() as f64 / 2.0 / scenes.max(1) as f64,
+        "arm": {
+            "matches_per_scene": on_arm.evaluated as f64 / scenes.max(1) as f64,
+            "disparity_within_0_5px": on_arm.within_fraction(),
+            "wrong_matches": on_arm.wrong_fraction(),
+            "lines3d_per_scene": lines.arm_lines as f64 / scenes.max(1) as f64,
+        },
         "timings_ms": medians,
     });
     if json { emit(&report.to_string()) } else { emit(&serde_json::to_string_pretty(&report)?) }

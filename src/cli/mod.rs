@@ -5,12 +5,14 @@
 //! - [`stereo`]: the front end on any stereo pair.
 //! - [`locate`]: render, front end and matcher on one scene, against the truth.
 //! - [`pick`]: physical picks with the simulated arm.
+//! - [`calibrate`]: hand-eye calibration through the robot server, and its evaluation.
 //! - [`serve`]: the simulated cell and the robot server behind a socket.
 //! - [`eval`], [`eval_pick`]: the pipeline over seeded scenes, against the truth.
 //! - [`bench`]: medians of how fast things run.
 //! - [`output`]: printing that tolerates a reader going away.
 
 pub mod bench;
+pub mod calibrate;
 pub mod edges;
 pub mod eval;
 pub mod eval_pick;

@@ -10,3 +10,42 @@ pub fn emit(line: &str) -> anyhow::Result<()> {
         other => Ok(other?),
     }
 }
+
+/// Progress of a long evaluation on stderr: a bar on a terminal (indicatif), with a line per
+/// step above it; without a terminal the lines alone; under `--json` nothing.
+pub struct Progress {
+    bar: Option<indicatif::ProgressBar>,
+    quiet: bool,
+}
+
+impl Progress {
+    pub fn new(len: u64, json: bool) -> Progress {
+        let terminal = std::io::IsTerminal::is_terminal(&std::io::stderr());
+        let bar = (terminal && !json).then(|| {
+            let bar = indicatif::ProgressBar::new(len);
+            if let Ok(style) = indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} [{elapsed} < {eta}]") {
+                bar.set_style(style);
+            }
+            bar
+        });
+        Progress { bar, quiet: json }
+    }
+
+    /// A line about the step just done, and the bar moved on.
+    pub fn step(&self, line: String) {
+        match &self.bar {
+            Some(bar) => {
+                bar.println(line);
+                bar.inc(1);
+            }
+            None if !self.quiet => eprintln!("{line}"),
+            None => {}
+        }
+    }
+
+    pub fn finish(self) {
+        if let Some(bar) = self.bar {
+            bar.finish_and_clear();
+        }
+    }
+}

@@ -12,19 +12,21 @@ use super::{CellJob, Shared};
 use crate::pick::{HOME, PickCell, Workcell, grasp_candidates, place_target, static_obstacles};
 use crate::protocol::{
     CaptureReply, ErrorCode, Frame, HelloReply, Intrinsics, MoveReply, MoveTarget, PROTOCOL, PickOutcomeKind,
-    PickReply, PickSpec, Request, RigCalibration, StatusReply, TruthObject, TruthReply, WireError, WirePose,
+    PickReply, PickSpec, Request, RigCalibration, StatusReply, ToolReply, TruthObject, TruthReply, WireError, WirePose,
 };
 use anyhow::Context;
 use base64::Engine;
 use mesh::{PinholeCamera, StereoCalibration};
 use nalgebra::Isometry3;
+use rapier3d::prelude::RigidBodyHandle;
 use robot::Joints;
 use robot::pick::{FREE_SPEED, GraspCandidate, PickRequest, grasp_variants, plan_pick};
-use robot::planner::{CollisionWorld, Obstacle, PlannerParams, Problem};
+use robot::planner::{Attached, CollisionWorld, Obstacle, PlannerParams, Problem};
 use robot::trajectory::{Limits, Trajectory};
 use serde_json::Value;
 use sim::physics::collision_shape;
 use sim::render::{Light, RenderScene, render_stereo};
+use sim::render::{TOOL_ID, arm_link_id};
 use sim::{Scenario, Scene};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -109,7 +111,26 @@ struct SimCell<'a> {
     /// Captures and motions so far: each gets a seed of its own (sensor noise, planner).
     captures: u64,
     motions: u64,
+    /// The tool the operator handed into the gripper, if any.
+    tool: Option<HeldTool>,
 }
+
+/// A tool in the gripper: its name, body, and where the robot believes it sits in the gripper
+/// (the tool's URDF), for planning around it.
+struct HeldTool {
+    name: String,
+    body: RigidBodyHandle,
+    gripper_from_tool: Isometry3<f64>,
+    shape: parry3d::shape::SharedShape,
+}
+
+/// Gauss-Seidel passes per substep while a tool is held (`sim::arm::configure_for_grasping`
+/// sets 2 for picks, restored when the tool is stowed).
+const TOOL_PGS_ITERATIONS: usize = 8;
+
+/// The tools an operator can hand in: the calibration flag (`urdf/flag_tool.urdf`, next to the
+/// arm's URDF; the library model `flag`).
+const TOOLS: [(&str, &str); 1] = [("flag", "flag_tool.urdf")];
 
 impl<'a> SimCell<'a> {
     fn new(
@@ -131,6 +152,7 @@ impl<'a> SimCell<'a> {
             seed,
             captures: 0,
             motions: 0,
+            tool: None,
         })
     }
 
@@ -145,6 +167,8 @@ impl<'a> SimCell<'a> {
                 Ok(serde_json::json!({ "calibrated": true }))
             }
             Request::Pick(spec) => json(self.pick(spec)),
+            Request::TakeTool { tool } => json(self.take_tool(tool)),
+            Request::StowTool {} => json(self.stow_tool()),
             Request::Truth {} if self.expose_truth => json(Ok(self.truth())),
             Request::Truth {} => Err(WireError::new(
                 ErrorCode::BadRequest,
@@ -161,7 +185,7 @@ impl<'a> SimCell<'a> {
         let status = StatusReply {
             joints: self.joint_map(&self.joints()),
             gripper_opening_mm: self.pick.arm.opening(&self.pick.cell) * 1e3,
-            holding: None,
+            holding: self.tool.as_ref().map(|t| t.name.clone()),
             calibrated: self.cam_from_base.is_some(),
             sim_time_s: self.pick.simulated_s,
             moving,
@@ -198,7 +222,13 @@ impl<'a> SimCell<'a> {
                 (*id, self.scn.library.models[model].mesh.transformed(&self.pick.cell.pose(*body)))
             })
             .collect();
-        let rs = RenderScene::new(statics.chain(objects), &self.light);
+        let arm =
+            self.pick.arm.link_meshes(&self.pick.cell).into_iter().enumerate().map(|(k, (_, m))| (arm_link_id(k), m));
+        let tool = self.tool.as_ref().map(|t| {
+            let model = &self.scn.library.models[&t.name];
+            (TOOL_ID, model.mesh.transformed(&self.pick.cell.pose(t.body)))
+        });
+        let rs = RenderScene::new(statics.chain(objects).chain(arm).chain(tool), &self.light);
         self.captures += 1;
         let noise_seed = self.seed.wrapping_mul(1_000_003).wrapping_add(self.captures);
         let (left, right) = render_stereo(&rs, &self.calib, self.scn.world.render.noise_sigma, noise_seed);
@@ -280,7 +310,9 @@ impl<'a> SimCell<'a> {
         let world =
             CollisionWorld::new(&self.work.arm, static_obstacles(self.scn, self.work), robot::pick::FREE_CLEARANCE_M);
         self.motions += 1;
-        let path = Problem { arm: &self.work.arm, world: &world, opening, attached: None }
+        let held =
+            self.tool.as_ref().map(|t| Attached { shape: t.shape.clone(), gripper_from_shape: t.gripper_from_tool });
+        let path = Problem { arm: &self.work.arm, world: &world, opening, attached: held.as_ref() }
             .plan(&start, goal, &PlannerParams::default(), self.motion_seed())
             .map_err(|e| WireError::new(ErrorCode::NoPath, e.to_string()))?;
         let limits = Limits { velocity: self.work.arm.max_velocity(), acceleration: self.work.arm.max_acceleration() };
@@ -300,6 +332,12 @@ impl<'a> SimCell<'a> {
     }
 
     fn pick(&mut self, spec: &PickSpec) -> Result<PickReply, WireError> {
+        if let Some(t) = &self.tool {
+            return Err(WireError::new(
+                ErrorCode::BadRequest,
+                format!("the gripper holds the {}: stow_tool first", t.name),
+            ));
+        }
         let t0 = Instant::now();
         let request = self.pick_request(spec)?;
         let bin = self.scn.world.bins.iter().position(|b| b.name == spec.place.bin).expect("checked in pick_request");
@@ -431,6 +469,50 @@ impl<'a> SimCell<'a> {
         })
     }
 
+    /// The operator puts the tool between the open jaws where its URDF says it is held; the
+    /// jaws close on it under their force limit (friction alone holds it).
+    fn take_tool(&mut self, name: &str) -> Result<ToolReply, WireError> {
+        if let Some(t) = &self.tool {
+            return Err(WireError::new(
+                ErrorCode::BadRequest,
+                format!("the gripper already holds the {}: stow_tool first", t.name),
+            ));
+        }
+        let file = TOOLS.iter().find(|(n, _)| *n == name).map(|(_, f)| *f).ok_or_else(|| {
+            let names: Vec<&str> = TOOLS.iter().map(|(n, _)| *n).collect();
+            WireError::new(ErrorCode::UnknownModel, format!("no tool `{name}`; the cell's tools: {}", names.join(", ")))
+        })?;
+        let internal = |m: String| WireError::new(ErrorCode::Internal, m);
+        let tool = robot::tool::Tool::from_urdf_file(&self.work.urdf.with_file_name(file))
+            .map_err(|e| internal(e.to_string()))?;
+        let model =
+            self.scn.library.models.get(name).ok_or_else(|| internal(format!("the library has no model `{name}`")))?;
+        let width = model.grasps.first().map_or(0.0, |g| g.opening);
+        self.pick.grip(width + robot::pick::OPEN_MARGIN_M);
+        let gripper_from_tool = tool.tool_from_gripper.inverse();
+        let at = self.pick.arm.world_from_gripper(&self.pick.cell) * gripper_from_tool;
+        // Rapier's friction on the finger links lets a held plate creep under its weight; more
+        // Gauss-Seidel passes while the tool is held stop it turning in the jaws (12 moves: 0.77 ->
+        // 0.06 deg) though not sliding along them (about 0.08 mm a move either way).
+        self.pick.cell.world.integration_parameters.num_internal_pgs_iterations = TOOL_PGS_ITERATIONS;
+        let body = self.pick.cell.add_tool(model, &at);
+        sim::arm::hold_without_ccd(&mut self.pick.cell, body);
+        self.pick.grip(0.0);
+        self.tool = Some(HeldTool { name: name.to_string(), body, gripper_from_tool, shape: collision_shape(model) });
+        Ok(ToolReply { holding: Some(name.to_string()), jaw_mm: self.pick.arm.opening(&self.pick.cell) * 1e3 })
+    }
+
+    /// The jaws open and the operator takes the tool away.
+    fn stow_tool(&mut self) -> Result<ToolReply, WireError> {
+        let tool =
+            self.tool.take().ok_or_else(|| WireError::new(ErrorCode::BadRequest, "the gripper holds no tool"))?;
+        let width = self.scn.library.models.get(&tool.name).and_then(|m| m.grasps.first()).map_or(0.0, |g| g.opening);
+        self.pick.grip(width + robot::pick::OPEN_MARGIN_M);
+        self.pick.cell.remove(tool.body);
+        sim::arm::configure_for_grasping(&mut self.pick.cell);
+        Ok(ToolReply { holding: None, jaw_mm: self.pick.arm.opening(&self.pick.cell) * 1e3 })
+    }
+
     fn model_names(&self) -> String {
         self.scn.library.names().collect::<Vec<_>>().join(", ")
     }
@@ -449,8 +531,13 @@ impl<'a> SimCell<'a> {
             })
             .collect();
         let world_from_cam = self.calib.left.world_from_cam;
+        let world_from_gripper = self.pick.arm.world_from_gripper(&self.pick.cell);
         TruthReply {
             objects,
+            tool_in_gripper: self
+                .tool
+                .as_ref()
+                .map(|t| WirePose::new(None, &(world_from_gripper.inverse() * self.pick.cell.pose(t.body)))),
             world_from_base: WirePose::new(None, &self.work.world_from_base),
             world_from_cam: WirePose::new(None, &world_from_cam),
             cam_from_base: WirePose::new(None, &(world_from_cam.inverse() * self.work.world_from_base)),

@@ -31,7 +31,7 @@ pub(crate) fn hypotheses(
     views
         .par_iter()
         .flat_map_iter(|focus| {
-            let mut seen = Seen::new(p.min_support_fraction * model.total_length);
+            let mut seen = Seen::new(p.min_support_fraction * model.total_length, RECORDED_PER_KEPT * p.hypotheses);
             for_each_hypothesis(model, scene, (pairs, &free_lines), focus, p, &mut seen);
             seen.all
         })
@@ -60,19 +60,22 @@ pub(crate) fn rescored(
         .collect()
 }
 
-/// The hypotheses of a search that find support above `floor` and, once [`RECORDED`] have,
-/// above the least of the best [`RECORDED`] so far (a hypothesis that cannot make those is
+/// The hypotheses of a search that find support above `floor` and, once `recorded` have,
+/// above the least of the best `recorded` so far (a hypothesis that cannot make those is
 /// neither this search's best nor, once lines are claimed, a later one's).
 pub(crate) struct Seen {
     pub(crate) floor: f64,
     pub(crate) all: Vec<(f64, Isometry3<f64>)>,
     /// The best scores so far, least on top.
     pub(crate) best: std::collections::BinaryHeap<std::cmp::Reverse<Score>>,
+    /// How many of the best set the floor.
+    pub(crate) recorded: usize,
 }
 
-/// Hypotheses whose support sets the floor of a search. 60 found slightly more objects than
-/// keeping every hypothesis over the minimum support, with 5% less work; 30 found fewer.
-pub(crate) const RECORDED: usize = 60;
+/// Hypotheses whose support sets the floor of a search, per hypothesis kept for verification
+/// (`MatchParams::hypotheses`). 60 for the 12 kept found slightly more objects than keeping
+/// every hypothesis over the minimum support, with 5% less work; 30 found fewer.
+pub(crate) const RECORDED_PER_KEPT: usize = 5;
 
 /// A support score, ordered.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -93,14 +96,14 @@ impl Ord for Score {
 }
 
 impl Seen {
-    fn new(floor: f64) -> Seen {
-        Seen { floor, all: Vec::new(), best: std::collections::BinaryHeap::new() }
+    fn new(floor: f64, recorded: usize) -> Seen {
+        Seen { floor, all: Vec::new(), best: std::collections::BinaryHeap::new(), recorded }
     }
 
     /// The support a hypothesis must exceed to be recorded.
     fn floor(&self) -> f64 {
         match self.best.peek() {
-            Some(std::cmp::Reverse(Score(least))) if self.best.len() == RECORDED => self.floor.max(*least),
+            Some(std::cmp::Reverse(Score(least))) if self.best.len() == self.recorded => self.floor.max(*least),
             _ => self.floor,
         }
     }
@@ -108,7 +111,7 @@ impl Seen {
     fn record(&mut self, score: f64, pose: Isometry3<f64>) {
         self.all.push((score, pose));
         self.best.push(std::cmp::Reverse(Score(score)));
-        if self.best.len() > RECORDED {
+        if self.best.len() > self.recorded {
             self.best.pop();
         }
     }

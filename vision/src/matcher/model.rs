@@ -27,7 +27,7 @@ impl Seg {
     }
 }
 
-/// A model as the matcher sees it.
+/// A model as the matcher sees it: its wireframe and its markings (a pattern's lines).
 #[derive(Debug, Clone)]
 pub struct MatcherModel {
     pub name: String,
@@ -58,7 +58,8 @@ pub struct MatcherModel {
 
 impl MatcherModel {
     pub fn from_model(m: &mesh::Model) -> MatcherModel {
-        let lines: Vec<Seg> = m.wireframe.iter().map(|s| Seg::new(s.a, s.b)).collect();
+        // A pattern's lines (the flag's checker) are seen as edges too.
+        let lines: Vec<Seg> = m.wireframe.iter().chain(&m.markings).map(|s| Seg::new(s.a, s.b)).collect();
         let faces = lines.iter().map(|l| faces_along(&m.mesh, l)).collect();
         let n = (2 * lines.len()).max(1) as f64;
         let centre = Point3::from(lines.iter().map(|l| l.a.coords + l.b.coords).sum::<Vector3<f64>>() / n);
@@ -176,6 +177,8 @@ pub struct MatchParams {
     pub min_support_lines: usize,
     /// Instances of one model sought at most.
     pub max_instances: usize,
+    /// Hypotheses kept for verification per search: the best supported, no two alike.
+    pub hypotheses: usize,
     /// With the image at hand, a located object's camera-facing wireframe must run along
     /// edgels for at least this fraction of its length.
     pub min_image_support: f64,
@@ -192,6 +195,7 @@ impl Default for MatchParams {
             min_support_fraction: 0.15,
             min_support_lines: 3,
             max_instances: 3,
+            hypotheses: 12,
             min_image_support: 0.5,
         }
     }

@@ -96,22 +96,19 @@ impl Candidate {
     }
 }
 
-/// The best-supported poses (up to `HYPOTHESES`, no two alike), best first.
-pub(crate) fn best_of(hypotheses: &[(f64, Isometry3<f64>)]) -> Vec<Isometry3<f64>> {
+/// The best-supported poses (up to `count`, no two alike), best first.
+pub(crate) fn best_of(hypotheses: &[(f64, Isometry3<f64>)], count: usize) -> Vec<Isometry3<f64>> {
     let mut best = Vec::new();
     for &(score, pose) in hypotheses {
-        keep_best(&mut best, score, pose);
+        keep_best(&mut best, score, pose, count);
     }
     best.into_iter().map(|(_, pose)| pose).collect()
 }
 
-/// Hypotheses kept for verification per search.
-pub(crate) const HYPOTHESES: usize = 12;
-
-/// Keeps the `HYPOTHESES` best-scored poses, a pose near a kept one (within 5 mm and 5 deg)
+/// Keeps the `count` best-scored poses, a pose near a kept one (within 5 mm and 5 deg)
 /// replacing it only if it scores better.
-pub(crate) fn keep_best(best: &mut Vec<(f64, Isometry3<f64>)>, score: f64, pose: Isometry3<f64>) {
-    if best.len() == HYPOTHESES && best.last().is_some_and(|(s, _)| score <= *s) {
+pub(crate) fn keep_best(best: &mut Vec<(f64, Isometry3<f64>)>, score: f64, pose: Isometry3<f64>, count: usize) {
+    if best.len() == count && best.last().is_some_and(|(s, _)| score <= *s) {
         return;
     }
     let alike = |q: &Isometry3<f64>| {
@@ -125,7 +122,7 @@ pub(crate) fn keep_best(best: &mut Vec<(f64, Isometry3<f64>)>, score: f64, pose:
     }
     let at = best.iter().position(|(s, _)| *s < score).unwrap_or(best.len());
     best.insert(at, (score, pose));
-    best.truncate(HYPOTHESES);
+    best.truncate(count);
 }
 
 /// Refits a pose on its supporting correspondences until the support stops growing.

@@ -52,7 +52,7 @@ pub(crate) fn locate_from(
         // Those short of the 3D evidence or the image evidence needed are left out (their image
         // support is not worked out, or not to the end: the check stops once it must fail).
         doubtful.clear();
-        let best = best_of(&seen)
+        let best = best_of(&seen, p.hypotheses)
             .into_iter()
             .filter_map(|start| {
                 let (pose, score, pairs) = refine(model, scene, &free, start, p);

@@ -1,0 +1,233 @@
+//! `marvin calibrate`: hand-eye calibration through the robot server (in-process on loopback,
+//! or `--connect`ed), written to a file the server takes; and `marvin eval calibrate`, seeded
+//! calibrations against the simulation's truth.
+
+use super::output::emit;
+use anyhow::Context;
+use hand_eye::HandEyeFile;
+use marvin::calibrate::{CalibrateConfig, Calibration, calibrate};
+use marvin::client::Client;
+use marvin::server::{CellConfig, Server, ServerConfig};
+use nalgebra::Isometry3;
+use serde_json::{Value, json};
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+/// The command's arguments.
+pub struct CalibrateArgs {
+    pub world: PathBuf,
+    pub poses: usize,
+    pub seed: Option<u64>,
+    pub connect: Option<String>,
+    pub out: PathBuf,
+    pub json: bool,
+}
+
+/// What evaluation learns from the simulation (an in-process server only), after the fact.
+#[derive(Debug, Clone, Default)]
+pub struct Truth {
+    pub cam_from_base: Option<Isometry3<f64>>,
+    /// The flag in the gripper, from the physics, at each capture.
+    pub flag_in_gripper: Vec<Isometry3<f64>>,
+}
+
+impl Truth {
+    /// How far the flag moved in the jaws between the first and last sighting, mm.
+    pub fn flag_creep_mm(&self) -> Option<f64> {
+        let (a, b) = (self.flag_in_gripper.first()?, self.flag_in_gripper.last()?);
+        Some((a.translation.vector - b.translation.vector).norm() * 1e3)
+    }
+}
+
+/// A server for one calibration: the one at `connect`, or one started here on loopback (for
+/// the world and seed, with its truth open to evaluation).
+pub enum Cell {
+    Remote(String),
+    Local(Server),
+}
+
+impl Cell {
+    pub fn start(world: &Path, seed: u64, connect: Option<&str>) -> anyhow::Result<Cell> {
+        if let Some(addr) = connect {
+            return Ok(Cell::Remote(addr.to_string()));
+        }
+        let cell = CellConfig { world: world.to_path_buf(), seed: Some(seed), cam_from_base: None, expose_truth: true };
+        Ok(Cell::Local(Server::start(ServerConfig::new(cell, "127.0.0.1:0".parse()?))?))
+    }
+
+    pub fn connect(&self) -> anyhow::Result<Client> {
+        let addr = match self {
+            Cell::Remote(a) => a.clone(),
+            Cell::Local(s) => s.addr().to_string(),
+        };
+        let mut client = Client::connect(&addr, Duration::from_secs(10))?;
+        let token = std::env::var("MARVIN_TOKEN").ok();
+        client.hello(token.as_deref())?;
+        Ok(client)
+    }
+
+    pub fn is_local(&self) -> bool {
+        matches!(self, Cell::Local(_))
+    }
+
+    pub fn stop(self) -> anyhow::Result<()> {
+        if let Cell::Local(s) = self {
+            s.stop();
+            s.wait()?;
+        }
+        Ok(())
+    }
+}
+
+/// One calibration on `cell`; with a local cell, the truth evaluation needs.
+pub fn run_once(
+    cell: &Cell,
+    library: &mesh::Library,
+    config: &CalibrateConfig,
+    progress: &mut dyn FnMut(&str),
+) -> anyhow::Result<(Calibration, Truth)> {
+    let mut client = cell.connect()?;
+    let mut truth = Truth::default();
+    let local = cell.is_local();
+    let mut after_capture = |c: &mut Client, _k: usize| -> anyhow::Result<()> {
+        if local {
+            let t = c.truth()?;
+            if let Some(p) = t.tool_in_gripper {
+                truth.flag_in_gripper.push(p.to_isometry("tool_in_gripper")?);
+            }
+            truth.cam_from_base = Some(t.cam_from_base.to_isometry("cam_from_base")?);
+        }
+        Ok(())
+    };
+    let calibration = calibrate(&mut client, library, config, &mut after_capture, progress)?;
+    client.bye()?;
+    Ok((calibration, truth))
+}
+
+fn pose_json(p: &Isometry3<f64>) -> Value {
+    serde_json::to_value(hand_eye::PoseJson::from(p)).expect("a pose serialises")
+}
+
+/// Error of the solved `cam_from_base` against the truth: mm and degrees.
+pub fn error_of(c: &Calibration, truth: &Truth) -> Option<(f64, f64)> {
+    let t = truth.cam_from_base?;
+    let s = &c.solution.cam_from_base;
+    Some(((s.translation.vector - t.translation.vector).norm() * 1e3, s.rotation.angle_to(&t.rotation).to_degrees()))
+}
+
+pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
+    let scn = sim::Scenario::load(&args.world)?;
+    let seed = args.seed.unwrap_or(scn.world.seed);
+    let config = CalibrateConfig { poses: args.poses, seed, ..CalibrateConfig::default() };
+    if !args.json {
+        eprintln!("calibrating: {} poses, seed {seed}", config.poses);
+    }
+    let cell = Cell::start(&args.world, seed, args.connect.as_deref())?;
+    let quiet = args.json;
+    let mut progress = |line: &str| {
+        if !quiet {
+            eprintln!("  {line}");
+        }
+    };
+    let (calibration, truth) = run_once(&cell, &scn.library, &config, &mut progress)?;
+    cell.stop()?;
+    let file = HandEyeFile::from_solution(&calibration.solution);
+    file.save(&args.out)?;
+    let s = &calibration.solution;
+    let error = error_of(&calibration, &truth);
+    if args.json {
+        let sightings: Vec<Value> = calibration
+            .poses
+            .iter()
+            .filter(|p| p.base_from_gripper.is_some())
+            .map(|p| {
+                json!({
+                    "base_from_gripper": p.base_from_gripper.as_ref().map(pose_json),
+                    "cam_from_flag": p.cam_from_flag.as_ref().map(pose_json),
+                    "used": p.used,
+                    "note": p.note,
+                })
+            })
+            .collect();
+        let mut doc = json!({
+            "sightings": sightings,
+            "cam_from_base": pose_json(&s.cam_from_base),
+            "gripper_from_flag": pose_json(&s.gripper_from_flag),
+            "residual_mm_rms": s.residual_mm_rms,
+            "residual_deg_rms": s.residual_deg_rms,
+            "sigma": s.sigma,
+            "out": args.out.display().to_string(),
+        });
+        if let (Some(t), Some((mm, deg))) = (truth.cam_from_base, error) {
+            doc["truth"] = json!({
+                "cam_from_base": pose_json(&t),
+                // From the physics at the first sighting (it creeps: see flag_creep_mm).
+                "gripper_from_flag": truth.flag_in_gripper.first().map(pose_json),
+            });
+            doc["error"] = json!({ "translation_mm": mm, "rotation_deg": deg });
+            doc["flag_creep_mm"] = json!(truth.flag_creep_mm());
+        }
+        return emit(&doc.to_string());
+    }
+    let used = s.used.iter().filter(|u| **u).count();
+    emit(&format!(
+        "{used} of {} poses used; residuals {:.3} mm, {:.3} deg RMS; sigma {:.3} mm, {:.4} deg",
+        calibration.poses.len(),
+        s.residual_mm_rms,
+        s.residual_deg_rms,
+        s.sigma.cam_from_base_mm,
+        s.sigma.cam_from_base_deg
+    ))?;
+    if let Some((mm, deg)) = error {
+        emit(&format!("against the simulation's truth: {mm:.3} mm, {deg:.4} deg"))?;
+    }
+    if let Some(creep) = truth.flag_creep_mm() {
+        emit(&format!("the flag moved {creep:.3} mm in the jaws between the first and last sighting"))?;
+    }
+    emit(&format!("wrote {}", args.out.display()))
+}
+
+/// `marvin eval calibrate`: seeded calibrations, each on its own scene and poses.
+pub fn eval(world: &Path, trials: u64, seed: u64, poses: usize, json: bool) -> anyhow::Result<()> {
+    let scn = sim::Scenario::load(world)?;
+    let (mut t_err, mut r_err, mut creep) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut used, mut total, mut failed) = (0usize, 0usize, Vec::new());
+    let progress = super::output::Progress::new(trials, json);
+    for k in 0..trials {
+        let s = seed + k;
+        let config = CalibrateConfig { poses, seed: s, ..CalibrateConfig::default() };
+        let cell = Cell::start(world, s, None)?;
+        let outcome = run_once(&cell, &scn.library, &config, &mut |_| {});
+        cell.stop()?;
+        match outcome {
+            Ok((c, truth)) => {
+                let (mm, deg) = error_of(&c, &truth).context("a local server gives the truth")?;
+                t_err.push(mm);
+                r_err.push(deg);
+                creep.extend(truth.flag_creep_mm());
+                used += c.solution.used.iter().filter(|u| **u).count();
+                total += c.poses.len();
+                let used = c.solution.used.iter().filter(|u| **u).count();
+                progress.step(format!("seed {s}: {mm:.3} mm, {deg:.4} deg ({used} of {} poses used)", c.poses.len()));
+            }
+            Err(e) => {
+                progress.step(format!("seed {s}: failed: {e:#}"));
+                failed.push(json!({ "seed": s, "error": format!("{e:#}") }));
+            }
+        }
+    }
+    progress.finish();
+    let q = |v: &[f64], p: f64| marvin::eval::quantile(v, p);
+    let report = json!({
+        "trials": trials,
+        "translation_err_mm_median": q(&t_err, 0.5),
+        "translation_err_mm_p90": q(&t_err, 0.9),
+        "rotation_err_deg_median": q(&r_err, 0.5),
+        "rotation_err_deg_p90": q(&r_err, 0.9),
+        "sightings_used_fraction": used as f64 / total.max(1) as f64,
+        "flag_creep_mm_max": creep.iter().copied().fold(0.0, f64::max),
+        "flag_creep_mm_median": q(&creep, 0.5),
+        "failed": failed,
+    });
+    if json { emit(&report.to_string()) } else { emit(&serde_json::to_string_pretty(&report)?) }
+}

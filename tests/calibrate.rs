@@ -1,0 +1,41 @@
+//! Hand-eye calibration end to end in the simulated cell: a robot server in-process, the flag
+//! handed in, carried to 20 poses, seen, located and solved; the result against the simulation's
+//! truth (read here, after the solve, as evaluation does).
+//!
+//! The limits are regression limits near what the calibration does today (seeds 1-6:
+//! 0.43-2.36 mm, 0.05-0.27 deg, about 1.5 times the worst), not the hand-eye issue's targets
+//! (0.5 mm, 0.05 deg median), which it does not meet yet: the flag creeps ~1.5 mm in the jaws
+//! during a calibration, and vision reads it ~2 mm off along its face normal.
+
+use marvin::calibrate::{CalibrateConfig, calibrate};
+use marvin::client::Client;
+use marvin::server::{CellConfig, Server, ServerConfig};
+use std::time::Duration;
+
+fn calibrate_seed(seed: u64) -> (f64, f64, usize) {
+    let world = concat!(env!("CARGO_MANIFEST_DIR"), "/worlds/widgets.toml");
+    let cell = CellConfig { world: world.into(), seed: Some(seed), cam_from_base: None, expose_truth: true };
+    let server = Server::start(ServerConfig::new(cell, "127.0.0.1:0".parse().unwrap())).unwrap();
+    let mut client = Client::connect(&server.addr().to_string(), Duration::from_secs(5)).unwrap();
+    client.hello(None).unwrap();
+    let library = mesh::Library::load_default().unwrap();
+    let config = CalibrateConfig { seed, ..CalibrateConfig::default() };
+    let c = calibrate(&mut client, &library, &config, &mut |_, _| Ok(()), &mut |_| {}).unwrap();
+    // Evaluation, after the fact.
+    let truth = client.truth().unwrap().cam_from_base.to_isometry("truth").unwrap();
+    assert!(client.status().unwrap().holding.is_none(), "the flag was stowed");
+    let s = &c.solution.cam_from_base;
+    let mm = (s.translation.vector - truth.translation.vector).norm() * 1e3;
+    let deg = s.rotation.angle_to(&truth.rotation).to_degrees();
+    (mm, deg, c.solution.used.iter().filter(|u| **u).count())
+}
+
+#[test]
+fn calibration_finds_the_camera_within_regression_limits() {
+    for seed in [1, 6] {
+        let (mm, deg, used) = calibrate_seed(seed);
+        eprintln!("seed {seed}: {mm:.3} mm, {deg:.4} deg, {used} sightings used");
+        assert!(used >= 8, "seed {seed}: only {used} sightings used");
+        assert!(mm < 3.5 && deg < 0.4, "seed {seed}: {mm:.3} mm, {deg:.4} deg from the truth");
+    }
+}
