@@ -31,8 +31,8 @@ impl Segment3 {
     }
 }
 
-/// Feature edges of `mesh` (which should be welded: shared corners share an index).
-pub fn feature_edges(mesh: &TriMesh, min_angle_deg: f64) -> Vec<Segment3> {
+/// The triangles along each edge (vertex indices, smaller first).
+fn faces_of_edges(mesh: &TriMesh) -> HashMap<(u32, u32), Vec<usize>> {
     let mut faces_of_edge: HashMap<(u32, u32), Vec<usize>> = HashMap::new();
     for (t, tri) in mesh.triangles.iter().enumerate() {
         for k in 0..3 {
@@ -40,6 +40,12 @@ pub fn feature_edges(mesh: &TriMesh, min_angle_deg: f64) -> Vec<Segment3> {
             faces_of_edge.entry((a.min(b), a.max(b))).or_default().push(t);
         }
     }
+    faces_of_edge
+}
+
+/// Feature edges of `mesh` (which should be welded: shared corners share an index).
+pub fn feature_edges(mesh: &TriMesh, min_angle_deg: f64) -> Vec<Segment3> {
+    let faces_of_edge = faces_of_edges(mesh);
     let cos_min = min_angle_deg.to_radians().cos();
     let mut edges: Vec<(u32, u32)> = faces_of_edge
         .iter()
@@ -57,13 +63,7 @@ pub fn feature_edges(mesh: &TriMesh, min_angle_deg: f64) -> Vec<Segment3> {
 /// calibration flag's checker), merged into straight segments through the pattern's crossings.
 /// They are lines a camera sees as well as the feature edges, though no solid edge lies there.
 pub fn marking_edges(mesh: &TriMesh, min_angle_deg: f64) -> Vec<Segment3> {
-    let mut faces_of_edge: HashMap<(u32, u32), Vec<usize>> = HashMap::new();
-    for (t, tri) in mesh.triangles.iter().enumerate() {
-        for k in 0..3 {
-            let (a, b) = (tri[k], tri[(k + 1) % 3]);
-            faces_of_edge.entry((a.min(b), a.max(b))).or_default().push(t);
-        }
-    }
+    let faces_of_edge = faces_of_edges(mesh);
     let cos_min = min_angle_deg.to_radians().cos();
     let mut edges: Vec<(u32, u32)> = faces_of_edge
         .iter()
