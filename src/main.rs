@@ -3,7 +3,7 @@
 
 mod cli;
 
-use cli::{bench, calibrate, edges, eval, locate, pick, render, serve, stereo};
+use cli::{bench, calibrate, edges, eval, locate, pick, render, run, serve, stereo};
 
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
@@ -18,6 +18,32 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// The main job: clear the table from what the cameras see.
+    ///
+    /// Starts the robot server for the world in-process on loopback (or uses the one at
+    /// --connect) and talks to it only over the socket; calibrates the hand-eye transform first
+    /// (or takes --hand-eye FILE); then cycles: the arm parks, the cameras capture, the front end
+    /// and the matcher locate the parts, the highest reachable one is picked into the bin by the
+    /// server; until nothing more is located. One line per cycle, a summary (with a server
+    /// started here, the objects cleared against the simulation's truth, read afterwards), and
+    /// the stage times beside the paper's Table 1.
+    Run {
+        world: PathBuf,
+        /// Seed of the scene (default: the world file's).
+        #[arg(long)]
+        seed: Option<u64>,
+        /// A running robot server (`marvin serve`) instead of one started here.
+        #[arg(long)]
+        connect: Option<String>,
+        /// A hand-eye file (from `marvin calibrate`) instead of calibrating first.
+        #[arg(long)]
+        hand_eye: Option<PathBuf>,
+        /// Pick cycles at most.
+        #[arg(long, default_value_t = 40, value_parser = clap::value_parser!(u16).range(1..=1000))]
+        max_cycles: u16,
+        #[arg(long)]
+        json: bool,
+    },
     /// Settle a world's objects and render what both cameras see.
     ///
     /// Writes left.png and right.png (8-bit grey), depth_left.png and depth_right.png (16-bit,
@@ -189,6 +215,9 @@ enum Command {
 
 fn main() -> std::process::ExitCode {
     let result = match Cli::parse().command {
+        Command::Run { world, seed, connect, hand_eye, max_cycles, json } => {
+            run::run(run::RunArgs { world, seed, connect, hand_eye, max_cycles: max_cycles as usize, json })
+        }
         Command::Render { world, seed, out } => render::run(&world, seed, &out),
         Command::Edges { image, sigma, json, out } => edges::run(&image, sigma, json, out.as_deref()),
         Command::Stereo { left, right, calib, rectified, disparity, slices, json, out } => {

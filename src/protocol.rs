@@ -367,7 +367,18 @@ pub struct HelloReply {
     pub protocol: u32,
     pub models: Vec<String>,
     pub bins: Vec<String>,
+    /// Where the bins are: the cell's layout, which a client needs to tell parts on the table
+    /// from parts already placed.
+    pub bin_boxes: Vec<BinBox>,
     pub calibrated: bool,
+}
+
+/// A bin's inside, as a box aligned with the base frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BinBox {
+    pub name: String,
+    pub centre_base_m: [f64; 3],
+    pub size_m: [f64; 3],
 }
 
 /// `status`'s reply.

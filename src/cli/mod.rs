@@ -1,5 +1,6 @@
 //! The command line's verbs, one file each; `main.rs` parses the arguments and calls them.
 //!
+//! - [`run`]: the main job, pick cycles until the table is clear; and its evaluation.
 //! - [`render`]: settle a world and render both cameras.
 //! - [`edges`]: Canny and edge strings of any image.
 //! - [`stereo`]: the front end on any stereo pair.
@@ -20,5 +21,6 @@ pub mod locate;
 pub mod output;
 pub mod pick;
 pub mod render;
+pub mod run;
 pub mod serve;
 pub mod stereo;

@@ -11,7 +11,7 @@
 use super::{CellJob, Shared};
 use crate::pick::{HOME, PickCell, Workcell, grasp_candidates, place_target, static_obstacles};
 use crate::protocol::{
-    CaptureReply, ErrorCode, Frame, HelloReply, Intrinsics, MoveReply, MoveTarget, PROTOCOL, PickOutcomeKind,
+    BinBox, CaptureReply, ErrorCode, Frame, HelloReply, Intrinsics, MoveReply, MoveTarget, PROTOCOL, PickOutcomeKind,
     PickReply, PickSpec, Request, RigCalibration, StatusReply, ToolReply, TruthObject, TruthReply, WireError, WirePose,
 };
 use anyhow::Context;
@@ -199,7 +199,31 @@ impl<'a> SimCell<'a> {
             protocol: PROTOCOL,
             models: self.scn.library.names().map(str::to_string).collect(),
             bins: self.scn.world.bins.iter().map(|b| b.name.clone()).collect(),
+            bin_boxes: self.scn.world.bins.iter().map(|b| self.bin_box(b)).collect(),
             calibrated: self.cam_from_base.is_some(),
+        }
+    }
+
+    /// A bin's inside (floor to rim) as a box aligned with the base frame.
+    fn bin_box(&self, bin: &sim::world::BinSpec) -> BinBox {
+        let base_from_world = self.work.world_from_base.inverse();
+        let [sx, sy, depth] = bin.size_m;
+        let corners: Vec<nalgebra::Point3<f64>> = [-0.5, 0.5]
+            .iter()
+            .flat_map(|&u| [-0.5, 0.5].into_iter().flat_map(move |v| [0.0, 1.0].map(|w| (u, v, w))))
+            .map(|(u, v, w)| {
+                let world =
+                    nalgebra::Point3::new(bin.centre_m[0] + u * sx, bin.centre_m[1] + v * sy, bin.wall_m + w * depth);
+                base_from_world * world
+            })
+            .collect();
+        let lo = corners.iter().fold(corners[0], |m, p| m.inf(p));
+        let hi = corners.iter().fold(corners[0], |m, p| m.sup(p));
+        let c = nalgebra::center(&lo, &hi);
+        BinBox {
+            name: bin.name.clone(),
+            centre_base_m: [c.x, c.y, c.z],
+            size_m: [hi.x - lo.x, hi.y - lo.y, hi.z - lo.z],
         }
     }
 

@@ -1,0 +1,244 @@
+//! `marvin run`: the main job. A robot server (in-process on loopback, or `--connect`ed), the
+//! hand-eye transform (from `--hand-eye`, or calibrated first), then pick cycles until the table
+//! is clear; one line per cycle, a summary, and the stage times beside the paper's Table 1.
+//! `marvin eval run`: seeded runs against the truth.
+
+use super::calibrate::Cell;
+use super::output::emit;
+use anyhow::Context;
+use marvin::calibrate::{CalibrateConfig, calibrate};
+use marvin::client::Client;
+use marvin::protocol::{PickOutcomeKind, TruthReply, WirePose};
+use marvin::run::{Cycle, RunConfig, RunReport, Stop, table1};
+use nalgebra::Isometry3;
+use serde_json::{Value, json};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// The command's arguments.
+pub struct RunArgs {
+    pub world: PathBuf,
+    pub seed: Option<u64>,
+    pub connect: Option<String>,
+    pub hand_eye: Option<PathBuf>,
+    pub max_cycles: usize,
+    pub json: bool,
+}
+
+/// What evaluation learns from the simulation after the fact (a local server only).
+#[derive(Debug, Clone, Default)]
+pub struct RunTruth {
+    /// Objects on the table (not in a bin) at the start, and in a bin at the end.
+    pub on_table_at_start: usize,
+    pub in_bin_at_end: usize,
+    /// For each pick tried: whether an object of the chosen model lay within 20 mm of where
+    /// vision put it.
+    pub target_there: Vec<bool>,
+}
+
+/// A run with everything evaluation needs: the report, the calibration's error (if calibrated
+/// here against a local server), the truth.
+pub struct Outcome {
+    pub report: RunReport,
+    pub truth: Option<RunTruth>,
+    pub calibration_error: CalibrationError,
+}
+
+/// Where vision's pose of `model` lies from the nearest true object of that model, metres.
+fn nearest_true(truth: &TruthReply, model: &str, cam_from_model: &Isometry3<f64>) -> Option<f64> {
+    let world_from_cam = truth.world_from_cam.to_isometry("world_from_cam").ok()?;
+    let p = world_from_cam * cam_from_model;
+    truth
+        .objects
+        .iter()
+        .filter(|o| o.model == model)
+        .filter_map(|o| o.world_from_model.to_isometry("world_from_model").ok())
+        .map(|w| (w.translation.vector - p.translation.vector).norm())
+        .min_by(f64::total_cmp)
+}
+
+/// The calibration's error against the truth: mm and degrees.
+type CalibrationError = Option<(f64, f64)>;
+
+/// The hand-eye transform: from a file, or calibrated now (with its error against the truth
+/// when the server is local).
+fn hand_eye(
+    client: &mut Client,
+    library: &mesh::Library,
+    file: Option<&Path>,
+    seed: u64,
+    local: bool,
+    quiet: bool,
+) -> anyhow::Result<(Isometry3<f64>, CalibrationError)> {
+    if let Some(f) = file {
+        let he = hand_eye::HandEyeFile::load(f)?;
+        return Ok((he.cam_from_base.to_isometry(), None));
+    }
+    let config = CalibrateConfig { seed, ..CalibrateConfig::default() };
+    let mut progress = |line: &str| {
+        if !quiet {
+            eprintln!("  calibration {line}");
+        }
+    };
+    let c = calibrate(client, library, &config, &mut |_, _| Ok(()), &mut progress).context("calibrating")?;
+    let x = c.solution.cam_from_base;
+    let error = if local {
+        let t = client.truth()?.cam_from_base.to_isometry("cam_from_base")?;
+        Some((
+            (x.translation.vector - t.translation.vector).norm() * 1e3,
+            x.rotation.angle_to(&t.rotation).to_degrees(),
+        ))
+    } else {
+        None
+    };
+    Ok((x, error))
+}
+
+/// One run on `cell`, calibrating first unless `hand_eye_file` is given; `cycle_line` hears of
+/// each cycle.
+pub fn run_once(
+    cell: &Cell,
+    library: &mesh::Library,
+    seed: u64,
+    hand_eye_file: Option<&Path>,
+    config: &RunConfig,
+    quiet: bool,
+    cycle_line: &mut dyn FnMut(&Cycle),
+) -> anyhow::Result<Outcome> {
+    let mut client = cell.connect()?;
+    let local = cell.is_local();
+    let (cam_from_base, calibration_error) = hand_eye(&mut client, library, hand_eye_file, seed, local, quiet)?;
+    client.set_hand_eye(WirePose::new(None, &cam_from_base))?;
+    let mut truth = local.then(RunTruth::default);
+    if let Some(t) = truth.as_mut() {
+        t.on_table_at_start = client.truth()?.objects.iter().filter(|o| !o.in_bin).count();
+    }
+    let mut before_pick = |c: &mut Client, _k: usize, l: &vision::matcher::Located| -> anyhow::Result<()> {
+        if let Some(t) = truth.as_mut() {
+            let now = c.truth()?;
+            t.target_there.push(nearest_true(&now, &l.model, &l.cam_from_model).is_some_and(|d| d < 0.02));
+        }
+        Ok(())
+    };
+    let report = marvin::run::run(&mut client, library, config, &cam_from_base, &mut before_pick, cycle_line)?;
+    if let Some(t) = truth.as_mut() {
+        t.in_bin_at_end = client.truth()?.objects.iter().filter(|o| o.in_bin).count();
+    }
+    client.bye()?;
+    Ok(Outcome { report, truth, calibration_error })
+}
+
+fn outcome_name(c: &Cycle) -> String {
+    match &c.outcome {
+        None => "nothing picked".into(),
+        Some(Ok(r)) => match r.outcome {
+            Some(PickOutcomeKind::Placed) => "placed".into(),
+            Some(k) => serde_json::to_value(k).ok().and_then(|v| v.as_str().map(str::to_string)).unwrap_or_default(),
+            None => "planned only".into(),
+        },
+        Some(Err(e)) => format!("refused: {e}"),
+    }
+}
+
+fn cycle_json(c: &Cycle) -> Value {
+    json!({
+        "located": c.located.iter().map(|l| json!({ "model": l.model, "support": l.support_fraction, "image_support": l.image_support })).collect::<Vec<_>>(),
+        "chosen": c.chosen.map(|i| c.located[i].model.clone()),
+        "outcome": outcome_name(c),
+        "unplannable": c.unplannable,
+        "vision_ms": c.vision_ms(),
+        "cycle_s": c.cycle_s,
+    })
+}
+
+/// Failures by kind, over every pick tried.
+pub fn failures(cycles: &[Cycle]) -> BTreeMap<String, usize> {
+    let mut out = BTreeMap::new();
+    for c in cycles.iter().filter(|c| c.chosen.is_some()) {
+        let name = outcome_name(c);
+        if name != "placed" {
+            *out.entry(name.split(':').next().unwrap_or("").to_string()).or_insert(0) += 1;
+        }
+    }
+    out
+}
+
+pub fn run(args: RunArgs) -> anyhow::Result<()> {
+    let scn = sim::Scenario::load(&args.world)?;
+    let seed = args.seed.unwrap_or(scn.world.seed);
+    if !args.json {
+        eprintln!("settling {} (seed {seed}) ...", args.world.display());
+    }
+    let cell = Cell::start(&args.world, seed, args.connect.as_deref())?;
+    let quiet = args.json;
+    let mut k = 0;
+    let mut line = |c: &Cycle| {
+        k += 1;
+        if !quiet {
+            let chosen = c.chosen.map_or("-".to_string(), |i| c.located[i].model.clone());
+            eprintln!(
+                "cycle {k}: {} located, {chosen} chosen: {} ({:.0} ms vision, {:.1} s)",
+                c.located.len(),
+                outcome_name(c),
+                c.vision_ms(),
+                c.cycle_s
+            );
+        }
+    };
+    let config = RunConfig { max_cycles: args.max_cycles, ..RunConfig::default() };
+    let out = run_once(&cell, &scn.library, seed, args.hand_eye.as_deref(), &config, quiet, &mut line)?;
+    cell.stop()?;
+    let cycles = &out.report.cycles;
+    let placed = cycles.iter().filter(|c| outcome_name(c) == "placed").count();
+    let picks = cycles.iter().filter(|c| c.chosen.is_some()).count();
+    let (rows, efficiency) = table1(cycles);
+    let stop = match out.report.stop {
+        Stop::NothingLocated => "nothing more located",
+        Stop::NothingPickable => "nothing located could be picked",
+        Stop::MaxCycles => "the cycle limit",
+    };
+    if args.json {
+        let mut doc = json!({
+            "cycles": cycles.iter().map(cycle_json).collect::<Vec<_>>(),
+            "stopped_by": stop,
+            "picks": picks,
+            "placed": placed,
+            "failures": failures(cycles),
+            "table1": rows,
+            "parallel_efficiency": efficiency,
+        });
+        if let Some(t) = &out.truth {
+            doc["truth"] = json!({
+                "on_table_at_start": t.on_table_at_start,
+                "in_bin_at_end": t.in_bin_at_end,
+                "wrong_model_picks": t.target_there.iter().filter(|x| !**x).count(),
+            });
+        }
+        if let Some((mm, deg)) = out.calibration_error {
+            doc["calibration_error"] = json!({ "translation_mm": mm, "rotation_deg": deg });
+        }
+        return emit(&doc.to_string());
+    }
+    emit(&format!("stopped by {stop}: {placed} of {picks} picks placed; failures {:?}", failures(cycles)))?;
+    if let Some(t) = &out.truth {
+        emit(&format!(
+            "against the simulation's truth: {} of {} objects cleared into the bin; {} picks at nothing of the model chosen",
+            t.in_bin_at_end,
+            t.on_table_at_start,
+            t.target_there.iter().filter(|x| !**x).count()
+        ))?;
+    }
+    if let Some((mm, deg)) = out.calibration_error {
+        emit(&format!("calibration: {mm:.2} mm, {deg:.3} deg from the true camera pose"))?;
+    }
+    emit("Table 1 (median per cycle, ms; the front end's stages in processor time over 8 slices):")?;
+    let total = rows.last().map_or(f64::NAN, |r| r.measured_ms);
+    for r in &rows {
+        emit(&format!("  {:<15} {:>9.1}   paper {:>6.0}", r.stage, r.measured_ms, r.paper_ms))?;
+    }
+    emit(&format!(
+        "  speed-up over the transputers {:.0}x; the slices' parallel efficiency {:.0}% (paper: over 80%)",
+        10_000.0 / total,
+        efficiency * 100.0
+    ))
+}
