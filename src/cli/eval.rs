@@ -33,6 +33,25 @@ pub enum EvalTarget {
         #[arg(long)]
         json: bool,
     },
+    /// Seeded end-to-end runs (`marvin run`), one calibration on the first seed's scene shared
+    /// by all, each scene's outcome judged from the simulation's truth afterwards.
+    ///
+    /// JSON keys: `cleared_fraction` (objects in the bin at the end of all objects on the table at
+    /// the start), `pick_success_rate` (placed of picks tried, every attempt counted),
+    /// `attempts_per_object` (picks per object placed), `wrong_model_picks` (picks at a pose where
+    /// no object of the model chosen lay within 20 mm), `cycles_mean`, `cycle_s_mean` (wall),
+    /// `vision_cycle_ms_median` (front end and matcher), `failures` (by kind, every attempt),
+    /// `stopped_by`, `calibration_error`.
+    Run {
+        world: PathBuf,
+        #[arg(long, default_value_t = 20)]
+        scenes: u64,
+        /// First seed; scene k uses seed + k.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        #[arg(long)]
+        json: bool,
+    },
     /// Seeded hand-eye calibrations (each on its own scene, with its own poses and sensor noise),
     /// each through a robot server started here, against the simulation's truth.
     ///
@@ -93,6 +112,7 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
         EvalTarget::Vision { world, scenes, seed, slices, json } => (world, scenes, seed, slices, json),
         EvalTarget::Locate { world, scenes, seed, json } => return run_locate(&world, scenes, seed, json),
         EvalTarget::Pick { world, trials, seed, json } => return super::eval_pick::run(&world, trials, seed, json),
+        EvalTarget::Run { world, scenes, seed, json } => return super::run::eval(&world, scenes, seed, json),
         EvalTarget::Calibrate { world, trials, seed, poses, json } => {
             return super::calibrate::eval(&world, trials, seed, poses, json);
         }

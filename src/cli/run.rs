@@ -14,6 +14,7 @@ use nalgebra::Isometry3;
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 /// The command's arguments.
 pub struct RunArgs {
@@ -57,6 +58,16 @@ fn nearest_true(truth: &TruthReply, model: &str, cam_from_model: &Isometry3<f64>
         .min_by(f64::total_cmp)
 }
 
+/// Where a run's hand-eye transform comes from.
+pub enum HandEye {
+    /// Calibrated at the start of the run.
+    Calibrate,
+    /// A calibration file.
+    File(PathBuf),
+    /// Known already (an evaluation calibrates once for all its scenes).
+    Known(Isometry3<f64>),
+}
+
 /// The calibration's error against the truth: mm and degrees.
 type CalibrationError = Option<(f64, f64)>;
 
@@ -65,12 +76,15 @@ type CalibrationError = Option<(f64, f64)>;
 fn hand_eye(
     client: &mut Client,
     library: &mesh::Library,
-    file: Option<&Path>,
+    source: &HandEye,
     seed: u64,
     local: bool,
     quiet: bool,
 ) -> anyhow::Result<(Isometry3<f64>, CalibrationError)> {
-    if let Some(f) = file {
+    if let HandEye::Known(x) = source {
+        return Ok((*x, None));
+    }
+    if let HandEye::File(f) = source {
         let he = hand_eye::HandEyeFile::load(f)?;
         return Ok((he.cam_from_base.to_isometry(), None));
     }
@@ -94,20 +108,20 @@ fn hand_eye(
     Ok((x, error))
 }
 
-/// One run on `cell`, calibrating first unless `hand_eye_file` is given; `cycle_line` hears of
-/// each cycle.
+/// One run on `cell`, with the hand-eye transform from `source`; `cycle_line` hears of each
+/// cycle.
 pub fn run_once(
     cell: &Cell,
     library: &mesh::Library,
     seed: u64,
-    hand_eye_file: Option<&Path>,
+    source: &HandEye,
     config: &RunConfig,
     quiet: bool,
     cycle_line: &mut dyn FnMut(&Cycle),
 ) -> anyhow::Result<Outcome> {
     let mut client = cell.connect()?;
     let local = cell.is_local();
-    let (cam_from_base, calibration_error) = hand_eye(&mut client, library, hand_eye_file, seed, local, quiet)?;
+    let (cam_from_base, calibration_error) = hand_eye(&mut client, library, source, seed, local, quiet)?;
     client.set_hand_eye(WirePose::new(None, &cam_from_base))?;
     let mut truth = local.then(RunTruth::default);
     if let Some(t) = truth.as_mut() {
@@ -186,7 +200,8 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         }
     };
     let config = RunConfig { max_cycles: args.max_cycles, ..RunConfig::default() };
-    let out = run_once(&cell, &scn.library, seed, args.hand_eye.as_deref(), &config, quiet, &mut line)?;
+    let source = args.hand_eye.clone().map_or(HandEye::Calibrate, HandEye::File);
+    let out = run_once(&cell, &scn.library, seed, &source, &config, quiet, &mut line)?;
     cell.stop()?;
     let cycles = &out.report.cycles;
     let placed = cycles.iter().filter(|c| outcome_name(c) == "placed").count();
@@ -241,4 +256,73 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         10_000.0 / total,
         efficiency * 100.0
     ))
+}
+
+/// `marvin eval run`: seeded end-to-end runs, one calibration (on the first seed's scene)
+/// shared by all: the cameras and the robot stand where the world file puts them in every scene.
+pub fn eval(world: &Path, scenes: u64, seed: u64, json: bool) -> anyhow::Result<()> {
+    let scn = sim::Scenario::load(world)?;
+    let cell = Cell::start(world, seed, None)?;
+    let mut client = cell.connect()?;
+    let (cam_from_base, calibration_error) =
+        hand_eye(&mut client, &scn.library, &HandEye::Calibrate, seed, true, true)?;
+    client.bye()?;
+    cell.stop()?;
+    let progress = super::output::Progress::new(scenes, json);
+    let (mut on_table, mut cleared, mut picks, mut placed, mut wrong) = (0, 0, 0, 0, 0);
+    let (mut cycles, mut cycle_s, mut vision_ms) = (0usize, Vec::new(), Vec::new());
+    let mut all_failures: BTreeMap<String, usize> = BTreeMap::new();
+    let mut stops: BTreeMap<&'static str, usize> = BTreeMap::new();
+    for k in 0..scenes {
+        let s = seed + k;
+        let clock = Instant::now();
+        let cell = Cell::start(world, s, None)?;
+        let out =
+            run_once(&cell, &scn.library, s, &HandEye::Known(cam_from_base), &RunConfig::default(), true, &mut |_| {})?;
+        cell.stop()?;
+        let truth = out.truth.context("a local server gives the truth")?;
+        let r = &out.report;
+        let (p, ok) = (
+            r.cycles.iter().filter(|c| c.chosen.is_some()).count(),
+            r.cycles.iter().filter(|c| outcome_name(c) == "placed").count(),
+        );
+        (on_table, cleared, picks, placed) =
+            (on_table + truth.on_table_at_start, cleared + truth.in_bin_at_end, picks + p, placed + ok);
+        wrong += truth.target_there.iter().filter(|x| !**x).count();
+        cycles += r.cycles.len();
+        cycle_s.extend(r.cycles.iter().map(|c| c.cycle_s));
+        vision_ms.extend(r.cycles.iter().map(Cycle::vision_ms));
+        for (kind, n) in failures(&r.cycles) {
+            *all_failures.entry(kind).or_insert(0) += n;
+        }
+        let stop = match r.stop {
+            Stop::NothingLocated => "nothing_located",
+            Stop::NothingPickable => "nothing_pickable",
+            Stop::MaxCycles => "max_cycles",
+        };
+        *stops.entry(stop).or_insert(0) += 1;
+        progress.step(format!(
+            "seed {s}: {} of {} cleared, {ok} of {p} picks placed, stopped by {stop} ({:.1} s)",
+            truth.in_bin_at_end,
+            truth.on_table_at_start,
+            clock.elapsed().as_secs_f64()
+        ));
+    }
+    progress.finish();
+    let q = |v: &[f64], p: f64| marvin::eval::quantile(v, p);
+    let report = json!({
+        "scenes": scenes,
+        "calibration": "one, on the first seed's scene, shared by all scenes",
+        "calibration_error": calibration_error.map(|(mm, deg)| json!({ "translation_mm": mm, "rotation_deg": deg })),
+        "cleared_fraction": cleared as f64 / on_table.max(1) as f64,
+        "pick_success_rate": placed as f64 / picks.max(1) as f64,
+        "attempts_per_object": picks as f64 / placed.max(1) as f64,
+        "wrong_model_picks": wrong,
+        "cycles_mean": cycles as f64 / scenes.max(1) as f64,
+        "cycle_s_mean": cycle_s.iter().sum::<f64>() / cycle_s.len().max(1) as f64,
+        "vision_cycle_ms_median": q(&vision_ms, 0.5),
+        "failures": all_failures,
+        "stopped_by": stops,
+    });
+    if json { emit(&report.to_string()) } else { emit(&serde_json::to_string_pretty(&report)?) }
 }
