@@ -8,6 +8,7 @@
 //!   motors, outcomes judged from the physics.
 //! - [`perception`]: what a capture becomes: images, the stereo head's calibration, the front
 //!   end's output, located parts or the calibration flag.
+//! - [`recording`]: rerun recordings of runs (the `rerun` feature, on by default).
 //! - [`run`]: the end-to-end cycle: park, capture, locate, choose, pick over the socket.
 //! - [`server`]: the robot server: the simulated cell behind a TCP socket.
 //! - [`calibrate`]: hand-eye calibration through the robot server: the flag carried to poses,
@@ -22,6 +23,7 @@ pub mod eval;
 pub mod perception;
 pub mod pick;
 pub mod protocol;
+pub mod recording;
 pub mod run;
 pub mod server;
 pub use vision::front_end;

@@ -43,6 +43,13 @@ enum Command {
         max_cycles: u16,
         #[arg(long)]
         json: bool,
+        /// Record the run for rerun in this file (open it with `rerun FILE.rrd`).
+        #[arg(long, conflicts_with = "rerun_connect")]
+        rerun: Option<PathBuf>,
+        /// Stream the run to a running rerun viewer (its gRPC URL, default
+        /// rerun+http://127.0.0.1:9876/proxy).
+        #[arg(long, num_args = 0..=1, default_missing_value = "")]
+        rerun_connect: Option<String>,
     },
     /// Settle a world's objects and render what both cameras see.
     ///
@@ -215,8 +222,14 @@ enum Command {
 
 fn main() -> std::process::ExitCode {
     let result = match Cli::parse().command {
-        Command::Run { world, seed, connect, hand_eye, max_cycles, json } => {
-            run::run(run::RunArgs { world, seed, connect, hand_eye, max_cycles: max_cycles as usize, json })
+        Command::Run { world, seed, connect, hand_eye, max_cycles, json, rerun, rerun_connect } => {
+            use marvin::recording::Sink;
+            let rerun = match (rerun, rerun_connect) {
+                (Some(file), _) => Some(Sink::File(file)),
+                (None, Some(url)) => Some(Sink::Viewer(Some(url).filter(|u| !u.is_empty()))),
+                (None, None) => None,
+            };
+            run::run(run::RunArgs { world, seed, connect, hand_eye, max_cycles: max_cycles as usize, json, rerun })
         }
         Command::Render { world, seed, out } => render::run(&world, seed, &out),
         Command::Edges { image, sigma, json, out } => edges::run(&image, sigma, json, out.as_deref()),

@@ -7,10 +7,13 @@
 
 use crate::client::Client;
 use crate::perception::{Pair, front_end, locate_parts, part_models};
-use crate::protocol::{Frame, PickOutcomeKind, PickReply, PickSpec, PlaceSpec, WireGrasp, WireObject, WirePose};
+use crate::protocol::{
+    CaptureReply, Frame, PickOutcomeKind, PickReply, PickSpec, PlaceSpec, WireGrasp, WireObject, WirePose,
+};
 use anyhow::Context;
 use nalgebra::Isometry3;
 use std::time::Instant;
+use vision::front_end::FrontEnd;
 use vision::matcher::Located;
 
 /// How a run goes.
@@ -52,6 +55,16 @@ impl Cycle {
     }
 }
 
+/// What a run reports as it goes (to print, and to record).
+pub enum RunEvent<'a> {
+    /// A capture and what the front end made of it.
+    Captured { cycle: usize, capture: &'a CaptureReply, pair: &'a Pair, front_end: &'a FrontEnd },
+    /// The parts located in it.
+    Located { cycle: usize, located: &'a [Located] },
+    /// A cycle done.
+    Done(&'a Cycle),
+}
+
 /// Why a run stopped.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Stop {
@@ -75,15 +88,16 @@ const MAX_TRIES: usize = 2;
 const SAME_PART_M: f64 = 0.01;
 
 /// Runs pick cycles on a connected robot server that has `cam_from_base` (the calibration's).
-/// `before_pick(client, cycle, chosen)` is called just before each pick (evaluation records the truth there;
-/// the run path passes nothing); `progress` hears of each cycle.
+/// `before_pick(client, cycle, chosen)` is called just before each pick (evaluation records the
+/// truth there; the run path passes nothing); `observe` hears of each capture, what was located,
+/// and each cycle.
 pub fn run(
     client: &mut Client,
     library: &mesh::Library,
     config: &RunConfig,
     cam_from_base: &Isometry3<f64>,
     before_pick: &mut dyn FnMut(&mut Client, usize, &Located) -> anyhow::Result<()>,
-    progress: &mut dyn FnMut(&Cycle),
+    observe: &mut dyn FnMut(RunEvent<'_>) -> anyhow::Result<()>,
 ) -> anyhow::Result<RunReport> {
     let hello = client.hello(std::env::var("MARVIN_TOKEN").ok().as_deref())?;
     anyhow::ensure!(hello.calibrated, "the robot server has no hand-eye transform: calibrate first");
@@ -96,18 +110,21 @@ pub fn run(
         let start = Instant::now();
         client.home().context("parking the arm out of view")?;
         let clock = Instant::now();
-        let pair = Pair::from_capture(&client.capture()?)?;
+        let capture = client.capture()?;
+        let pair = Pair::from_capture(&capture)?;
         let capture_ms = clock.elapsed().as_secs_f64() * 1e3;
         let fe = front_end(&pair);
         let clock = Instant::now();
         let located = locate_parts(&models, &pair, &fe);
         let match_ms = clock.elapsed().as_secs_f64() * 1e3;
+        observe(RunEvent::Captured { cycle: k, capture: &capture, pair: &pair, front_end: &fe })?;
+        observe(RunEvent::Located { cycle: k, located: &located })?;
         let mut timings_ms = fe.timings_ms.clone();
         timings_ms.extend([("match", match_ms), ("capture", capture_ms)]);
         let mut cycle = Cycle { located, chosen: None, outcome: None, unplannable: 0, timings_ms, cycle_s: 0.0 };
         if cycle.located.is_empty() {
             cycle.cycle_s = start.elapsed().as_secs_f64();
-            progress(&cycle);
+            observe(RunEvent::Done(&cycle))?;
             cycles.push(cycle);
             return Ok(RunReport { cycles, stop: Stop::NothingLocated });
         }
@@ -132,7 +149,7 @@ pub fn run(
             break;
         }
         cycle.cycle_s = start.elapsed().as_secs_f64();
-        progress(&cycle);
+        observe(RunEvent::Done(&cycle))?;
         let picked = cycle.chosen.is_some();
         cycles.push(cycle);
         if !picked {

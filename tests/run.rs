@@ -36,7 +36,8 @@ fn the_table_is_cleared_from_what_the_cameras_see() {
         c.set_hand_eye(WirePose::new(None, &cam_from_base)).unwrap();
         let on_table = c.truth().unwrap().objects.len();
         let report =
-            run(&mut c, &library, &RunConfig::default(), &cam_from_base, &mut |_, _, _| Ok(()), &mut |_| {}).unwrap();
+            run(&mut c, &library, &RunConfig::default(), &cam_from_base, &mut |_, _, _| Ok(()), &mut |_| Ok(()))
+                .unwrap();
         let truth = c.truth().unwrap();
         let left: Vec<String> =
             truth.objects.iter().filter(|o| !o.in_bin).map(|o| format!("{} {}", o.id, o.model)).collect();

@@ -6,10 +6,11 @@
 use super::calibrate::Cell;
 use super::output::emit;
 use anyhow::Context;
-use marvin::calibrate::{CalibrateConfig, calibrate};
+use marvin::calibrate::{CalibrateConfig, Calibration, calibrate};
 use marvin::client::Client;
 use marvin::protocol::{PickOutcomeKind, TruthReply, WirePose};
-use marvin::run::{Cycle, RunConfig, RunReport, Stop, table1};
+use marvin::recording::{Recording, Sink};
+use marvin::run::{Cycle, RunConfig, RunEvent, RunReport, Stop, table1};
 use nalgebra::Isometry3;
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
@@ -24,6 +25,8 @@ pub struct RunArgs {
     pub hand_eye: Option<PathBuf>,
     pub max_cycles: usize,
     pub json: bool,
+    /// Where to record the run for rerun, if anywhere.
+    pub rerun: Option<Sink>,
 }
 
 /// What evaluation learns from the simulation after the fact (a local server only).
@@ -80,13 +83,13 @@ fn hand_eye(
     seed: u64,
     local: bool,
     quiet: bool,
-) -> anyhow::Result<(Isometry3<f64>, CalibrationError)> {
+) -> anyhow::Result<(Isometry3<f64>, CalibrationError, Option<Calibration>)> {
     if let HandEye::Known(x) = source {
-        return Ok((*x, None));
+        return Ok((*x, None, None));
     }
     if let HandEye::File(f) = source {
         let he = hand_eye::HandEyeFile::load(f)?;
-        return Ok((he.cam_from_base.to_isometry(), None));
+        return Ok((he.cam_from_base.to_isometry(), None, None));
     }
     let config = CalibrateConfig { seed, ..CalibrateConfig::default() };
     let mut progress = |line: &str| {
@@ -105,11 +108,12 @@ fn hand_eye(
     } else {
         None
     };
-    Ok((x, error))
+    Ok((x, error, Some(c)))
 }
 
 /// One run on `cell`, with the hand-eye transform from `source`; `cycle_line` hears of each
-/// cycle.
+/// cycle; `recording`, if any, is given everything to record.
+#[allow(clippy::too_many_arguments)]
 pub fn run_once(
     cell: &Cell,
     library: &mesh::Library,
@@ -117,11 +121,21 @@ pub fn run_once(
     source: &HandEye,
     config: &RunConfig,
     quiet: bool,
-    cycle_line: &mut dyn FnMut(&Cycle),
+    cycle_line: &mut dyn FnMut(&Cycle) -> String,
+    mut recording: Option<&mut Recording>,
 ) -> anyhow::Result<Outcome> {
     let mut client = cell.connect()?;
     let local = cell.is_local();
-    let (cam_from_base, calibration_error) = hand_eye(&mut client, library, source, seed, local, quiet)?;
+    let (cam_from_base, calibration_error, calibration) = hand_eye(&mut client, library, source, seed, local, quiet)?;
+    if let Some(r) = recording.as_deref_mut() {
+        if let Some(c) = &calibration {
+            let truth = if local { Some(client.truth()?.cam_from_base.to_isometry("cam_from_base")?) } else { None };
+            r.calibration(c, truth.as_ref())?;
+        } else {
+            r.calibration_known(&cam_from_base)?;
+        }
+        r.bins(&client.hello(std::env::var("MARVIN_TOKEN").ok().as_deref())?.bin_boxes)?;
+    }
     client.set_hand_eye(WirePose::new(None, &cam_from_base))?;
     let mut truth = local.then(RunTruth::default);
     if let Some(t) = truth.as_mut() {
@@ -134,7 +148,35 @@ pub fn run_once(
         }
         Ok(())
     };
-    let report = marvin::run::run(&mut client, library, config, &cam_from_base, &mut before_pick, cycle_line)?;
+    let mut sim_time = 0.0;
+    let mut observe = |event: RunEvent<'_>| -> anyhow::Result<()> {
+        match event {
+            RunEvent::Captured { cycle, capture, pair, front_end } => {
+                sim_time = capture.sim_time_s;
+                if let Some(r) = recording.as_deref_mut() {
+                    r.at(cycle, sim_time);
+                    r.capture(capture, pair, front_end)?;
+                }
+            }
+            RunEvent::Located { located, .. } => {
+                if let Some(r) = recording.as_deref_mut() {
+                    r.located(located, library)?;
+                }
+            }
+            RunEvent::Done(c) => {
+                let line = cycle_line(c);
+                if let Some(r) = recording.as_deref_mut() {
+                    r.cycle(c, &line)?;
+                }
+            }
+        }
+        Ok(())
+    };
+    let report = marvin::run::run(&mut client, library, config, &cam_from_base, &mut before_pick, &mut observe)?;
+    if let (Some(r), true) = (recording, local) {
+        r.at(report.cycles.len(), sim_time);
+        r.truth(&client.truth()?, library)?;
+    }
     if let Some(t) = truth.as_mut() {
         t.in_bin_at_end = client.truth()?.objects.iter().filter(|o| o.in_bin).count();
     }
@@ -188,21 +230,35 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
     let mut k = 0;
     let mut line = |c: &Cycle| {
         k += 1;
+        let chosen = c.chosen.map_or("-".to_string(), |i| c.located[i].model.clone());
+        let line = format!(
+            "cycle {k}: {} located, {chosen} chosen: {} ({:.0} ms vision, {:.1} s)",
+            c.located.len(),
+            outcome_name(c),
+            c.vision_ms(),
+            c.cycle_s
+        );
         if !quiet {
-            let chosen = c.chosen.map_or("-".to_string(), |i| c.located[i].model.clone());
-            eprintln!(
-                "cycle {k}: {} located, {chosen} chosen: {} ({:.0} ms vision, {:.1} s)",
-                c.located.len(),
-                outcome_name(c),
-                c.vision_ms(),
-                c.cycle_s
-            );
+            eprintln!("{line}");
         }
+        line
     };
     let config = RunConfig { max_cycles: args.max_cycles, ..RunConfig::default() };
     let source = args.hand_eye.clone().map_or(HandEye::Calibrate, HandEye::File);
-    let out = run_once(&cell, &scn.library, seed, &source, &config, quiet, &mut line)?;
+    let mut recording = args.rerun.as_ref().map(Recording::start).transpose()?;
+    let out = run_once(&cell, &scn.library, seed, &source, &config, quiet, &mut line, recording.as_mut())?;
     cell.stop()?;
+    if let Some(r) = recording {
+        r.finish()?;
+        if !quiet {
+            match &args.rerun {
+                Some(Sink::File(path)) => {
+                    eprintln!("recorded the run in {} (open it with `rerun {}`)", path.display(), path.display())
+                }
+                _ => eprintln!("streamed the run to the rerun viewer"),
+            }
+        }
+    }
     let cycles = &out.report.cycles;
     let placed = cycles.iter().filter(|c| outcome_name(c) == "placed").count();
     let picks = cycles.iter().filter(|c| c.chosen.is_some()).count();
@@ -264,7 +320,7 @@ pub fn eval(world: &Path, scenes: u64, seed: u64, json: bool) -> anyhow::Result<
     let scn = sim::Scenario::load(world)?;
     let cell = Cell::start(world, seed, None)?;
     let mut client = cell.connect()?;
-    let (cam_from_base, calibration_error) =
+    let (cam_from_base, calibration_error, _) =
         hand_eye(&mut client, &scn.library, &HandEye::Calibrate, seed, true, true)?;
     client.bye()?;
     cell.stop()?;
@@ -277,8 +333,8 @@ pub fn eval(world: &Path, scenes: u64, seed: u64, json: bool) -> anyhow::Result<
         let s = seed + k;
         let clock = Instant::now();
         let cell = Cell::start(world, s, None)?;
-        let out =
-            run_once(&cell, &scn.library, s, &HandEye::Known(cam_from_base), &RunConfig::default(), true, &mut |_| {})?;
+        let known = HandEye::Known(cam_from_base);
+        let out = run_once(&cell, &scn.library, s, &known, &RunConfig::default(), true, &mut |_| String::new(), None)?;
         cell.stop()?;
         let truth = out.truth.context("a local server gives the truth")?;
         let r = &out.report;
