@@ -201,6 +201,7 @@ fn cycle_json(c: &Cycle) -> Value {
         "located": c.located.iter().map(|l| json!({ "model": l.model, "support": l.support_fraction, "image_support": l.image_support })).collect::<Vec<_>>(),
         "chosen": c.chosen.map(|i| c.located[i].model.clone()),
         "outcome": outcome_name(c),
+        "detail": c.outcome.as_ref().and_then(|o| o.as_ref().ok()).and_then(|r| r.detail.clone()),
         "unplannable": c.unplannable,
         "vision_ms": c.vision_ms(),
         "cycle_s": c.cycle_s,
