@@ -69,6 +69,10 @@ pub struct BenchArgs {
     /// Print JSON: `{"<stage>": {"median_ms": X}, ...}`.
     #[arg(long)]
     json: bool,
+    /// (vision) Also print the stages in the rows of the paper's Table 1, beside its figures,
+    /// with the speed-up and the slices' parallel efficiency (`{"table1": [...]}` with --json).
+    #[arg(long)]
+    table1: bool,
 }
 
 /// Median of `runs` timings of `f`, in milliseconds, after one warm-up run.
@@ -268,7 +272,47 @@ fn vision(args: &BenchArgs) -> anyhow::Result<()> {
     results.push(("match", matching));
     results.push(("vision_cycle", cycle));
     let what = format!("{}; canny one thread, the rest {} threads", args.world.display(), rayon::current_num_threads());
+    if args.table1 {
+        return table1(args, &results, &mut sliced_stages);
+    }
     report(args, &results, &what)
+}
+
+/// The vision medians in the rows of the paper's Table 1 (as `marvin run` prints them, without
+/// the capture, which a bench does not make).
+fn table1(args: &BenchArgs, results: &[(&str, f64)], sliced: &mut StageTimes) -> anyhow::Result<()> {
+    let named = |k: &str| results.iter().find(|(n, _)| *n == k).map_or(0.0, |(_, v)| *v);
+    let mut timings_ms: Vec<(&'static str, f64)> =
+        ["canny", "strings", "rectify", "pmf", "geom2d", "geom3d", "slices", "join"]
+            .iter()
+            .map(|&n| (n, sliced.median(n)))
+            .collect();
+    timings_ms.push(("match", named("match")));
+    let cycle = marvin::run::Cycle {
+        located: Vec::new(),
+        chosen: None,
+        outcome: None,
+        unplannable: 0,
+        timings_ms,
+        cycle_s: 0.0,
+    };
+    let (rows, efficiency) = marvin::run::table1(std::slice::from_ref(&cycle));
+    if args.json {
+        return emit(&serde_json::json!({ "table1": rows, "parallel_efficiency": efficiency }).to_string());
+    }
+    emit(&format!(
+        "Table 1 (median of {} runs, ms; the front end's stages in processor time over 8 slices):",
+        args.runs
+    ))?;
+    for r in &rows {
+        emit(&format!("  {:<15} {:>9.1}   paper {:>6.0}", r.stage, r.measured_ms, r.paper_ms))?;
+    }
+    let total = rows.last().map_or(f64::NAN, |r| r.measured_ms);
+    emit(&format!(
+        "  speed-up over the transputers {:.0}x; the slices' parallel efficiency {:.0}% (paper: over 80%)",
+        10_000.0 / total,
+        efficiency * 100.0
+    ))
 }
 
 fn server(args: &ServerBenchArgs) -> anyhow::Result<()> {
