@@ -55,10 +55,12 @@ pub struct Calibration {
 
 /// The region the flag is carried through, in the base frame (metres): in front of the robot,
 /// where the cell's layout puts the table and the cameras' view, high enough that the hanging
-/// flag clears whatever lies on the table.
-const REGION_X: (f64, f64) = (0.20, 0.36);
+/// flag clears whatever lies on the table. (x 0.20-0.36, z 0.16-0.30 put the flag high in the
+/// images and it was seen from 57% of the poses: 1.57 mm / 0.18 deg over 6 seeds; here 81%,
+/// 0.83 mm / 0.070 deg; 0.30-0.44 was worse again, 1.12 mm / 0.085 deg.)
+const REGION_X: (f64, f64) = (0.26, 0.40);
 const REGION_Y: (f64, f64) = (-0.12, 0.12);
-const REGION_Z: (f64, f64) = (0.16, 0.30);
+const REGION_Z: (f64, f64) = (0.14, 0.26);
 
 /// The gripper poses a calibration visits: positions over [`REGION_X`] x [`REGION_Y`] x
 /// [`REGION_Z`]; the flag's faces turned towards the robot's front (where the cameras are, as
