@@ -11,7 +11,8 @@
 //! - `cell/truth/objects/<id>`: with a server started here, the objects' meshes where the
 //!   simulation has them after each cycle (evaluation's view, logged after the fact);
 //! - `cell/calibration`: the flag sightings, the solved camera pose, and (locally) the true one;
-//! - `stages/<stage>`: each cycle's stage times, ms; `log`: a text log of events.
+//! - `stages/<stage>`: each cycle's stage times, ms; `joints/<joint>`: the arm's joints at the
+//!   end of each cycle; `log`: a text log of events.
 //!
 //! A default blueprint lays out the 3D view, the two camera views and the log. Built without the
 //! `rerun` feature, asking for a recording is an error that says so.
@@ -234,8 +235,12 @@ mod with_rerun {
             Ok(())
         }
 
-        /// A cycle's stage times and outcome.
+        /// A cycle's stage times, the arm's joints at its end, and its outcome.
         pub fn cycle(&self, c: &Cycle, line: &str) -> anyhow::Result<()> {
+            self.rec.set_duration_secs("sim_time", c.sim_time_s);
+            for (joint, value) in &c.joints {
+                self.rec.log(format!("joints/{joint}").as_str(), &rerun::Scalars::single(*value))?;
+            }
             for (stage, ms) in &c.timings_ms {
                 self.rec.log(format!("stages/{stage}").as_str(), &rerun::Scalars::single(*ms))?;
             }

@@ -47,6 +47,10 @@ pub struct Cycle {
     pub timings_ms: Vec<(&'static str, f64)>,
     /// Wall time of the whole cycle, seconds.
     pub cycle_s: f64,
+    /// The arm's joints (by URDF name) and the simulated time at the end of the cycle, as the
+    /// server's `status` gives them.
+    pub joints: std::collections::BTreeMap<String, f64>,
+    pub sim_time_s: f64,
 }
 
 impl Cycle {
@@ -121,7 +125,16 @@ pub fn run(
         observe(RunEvent::Located { cycle: k, located: &located })?;
         let mut timings_ms = fe.timings_ms.clone();
         timings_ms.extend([("match", match_ms), ("capture", capture_ms)]);
-        let mut cycle = Cycle { located, chosen: None, outcome: None, unplannable: 0, timings_ms, cycle_s: 0.0 };
+        let mut cycle = Cycle {
+            located,
+            chosen: None,
+            outcome: None,
+            unplannable: 0,
+            timings_ms,
+            cycle_s: 0.0,
+            joints: Default::default(),
+            sim_time_s: capture.sim_time_s,
+        };
         if cycle.located.is_empty() {
             cycle.cycle_s = start.elapsed().as_secs_f64();
             observe(RunEvent::Done(&cycle))?;
@@ -148,6 +161,8 @@ pub fn run(
             cycle.outcome = Some(reply);
             break;
         }
+        let status = client.status()?;
+        (cycle.joints, cycle.sim_time_s) = (status.joints, status.sim_time_s);
         cycle.cycle_s = start.elapsed().as_secs_f64();
         observe(RunEvent::Done(&cycle))?;
         let picked = cycle.chosen.is_some();

@@ -45,6 +45,7 @@ fn a_run_is_recorded_with_its_entities() {
         "cell/bins",
         "cell/truth/objects/1",
         "stages/match",
+        "joints/shoulder",
         "log",
     ] {
         assert!(entities.contains(wanted), "no `{wanted}` in the recording; it holds {entities:?}");

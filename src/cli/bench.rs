@@ -295,6 +295,8 @@ fn table1(args: &BenchArgs, results: &[(&str, f64)], sliced: &mut StageTimes) ->
         unplannable: 0,
         timings_ms,
         cycle_s: 0.0,
+        joints: Default::default(),
+        sim_time_s: 0.0,
     };
     let (rows, efficiency) = marvin::run::table1(std::slice::from_ref(&cycle));
     if args.json {
