@@ -56,6 +56,8 @@ pub fn run(
         let grasp = loc.grasps.first().map(|(cam_from_gripper, _)| *cam_from_gripper);
         rows.push(serde_json::json!({
             "model": loc.model,
+            // The true object it was matched to (scene.json's id), if it was right.
+            "object": best.filter(|_| correct).map(|(i, _)| p.scene.objects[i].id),
             "cam_from_model": mesh::pose::PoseRecord::from(&loc.cam_from_model),
             "grasp_cam_from_gripper": grasp.as_ref().map(mesh::pose::PoseRecord::from),
             "support_fraction": loc.support_fraction,
@@ -84,7 +86,8 @@ pub fn run(
             let (support, lines_seen) = vision::matcher::support_at(model, pose, &lines, &mp);
             Some(serde_json::json!({
                 "model": name,
-                "object": i,
+                // The id of scene.json and `marvin pick --object`.
+                "object": p.scene.objects[i].id,
                 "visible_fraction": visible_fraction(&scn.library.models[name], pose, &calib.left, &p.left.depth),
                 "support_fraction_at_truth": support,
                 "supported_lines_at_truth": lines_seen,
