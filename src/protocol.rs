@@ -470,6 +470,10 @@ pub struct PickReply {
     pub grasp_index: usize,
     /// The jaws' opening once closed, mm.
     pub closed_opening_mm: Option<f64>,
+    /// The path planned for the tool centre point, in `base` (metres): each move's waypoints in
+    /// order, from the approach to the retreat.
+    #[serde(default)]
+    pub tcp_path_base_m: Vec<[f64; 3]>,
 }
 
 /// One object as the simulation has it (evaluation only).

@@ -8,6 +8,7 @@
 //! - `cell/located/<k>`: each located part's wireframe, labelled with its model, and its grasp
 //!   frame;
 //! - `cell/bins`: the bins, as the server's layout gives them;
+//! - `cell/path`: the path planned for the tool centre point in each pick, as the server sends it;
 //! - `cell/truth/objects/<id>`: with a server started here, the objects' meshes where the
 //!   simulation has them after each cycle (evaluation's view, logged after the fact);
 //! - `cell/calibration`: the flag sightings, the solved camera pose, and (locally) the true one;
@@ -245,6 +246,10 @@ mod with_rerun {
                 self.rec.log(format!("stages/{stage}").as_str(), &rerun::Scalars::single(*ms))?;
             }
             self.rec.log("stages/vision", &rerun::Scalars::single(c.vision_ms()))?;
+            if let Some(Ok(reply)) = &c.outcome {
+                let path: Vec<[f32; 3]> = reply.tcp_path_base_m.iter().map(|p| p.map(|v| v as f32)).collect();
+                self.rec.log("cell/path", &rerun::LineStrips3D::new([path]).with_colors([0xFF00FFFF]))?;
+            }
             self.text(line)
         }
 

@@ -43,6 +43,7 @@ fn a_run_is_recorded_with_its_entities() {
         "cell/calibration/solved_camera",
         "cell/calibration/true_camera",
         "cell/bins",
+        "cell/path",
         "cell/truth/objects/1",
         "stages/match",
         "joints/shoulder",

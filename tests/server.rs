@@ -183,6 +183,12 @@ fn a_whole_session_ends_with_an_object_in_the_bin() {
     // The highest object, from its true pose in the cam frame, lands in the bin.
     let reply = c.pick(spec_for(highest, &truth)).unwrap();
     assert_eq!(reply.outcome, Some(PickOutcomeKind::Placed), "{reply:?}");
+    // The path the server planned passes the object (its tool centre point within 5 cm of it).
+    let object = truth.objects.iter().find(|o| o.id == highest).unwrap();
+    let at = (base_from_world * iso(&object.world_from_model)).translation.vector;
+    let nearest =
+        reply.tcp_path_base_m.iter().map(|p| (nalgebra::Vector3::from(*p) - at).norm()).fold(f64::MAX, f64::min);
+    assert!(nearest < 0.05, "the planned path stays {:.0} mm from the object", nearest * 1e3);
     let after = c.truth().unwrap();
     assert!(
         after.objects.iter().find(|o| o.id == highest).unwrap().in_bin,

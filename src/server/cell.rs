@@ -367,6 +367,7 @@ impl<'a> SimCell<'a> {
         let bin = self.scn.world.bins.iter().position(|b| b.name == spec.place.bin).expect("checked in pick_request");
         let plan = plan_pick(&self.work.arm, &self.work.ik, &request).map_err(|e| self.why_unplanned(&request, e))?;
         let plan_ms = t0.elapsed().as_secs_f64() * 1e3;
+        let tcp_path_base_m = self.tcp_path(&plan);
         if spec.plan_only {
             let grasp_index = plan.grasp_index;
             return Ok(PickReply {
@@ -376,6 +377,7 @@ impl<'a> SimCell<'a> {
                 motion_s: 0.0,
                 grasp_index,
                 closed_opening_mm: None,
+                tcp_path_base_m,
             });
         }
         self.pick.bin = bin;
@@ -394,7 +396,24 @@ impl<'a> SimCell<'a> {
             motion_s: out.simulated_s,
             grasp_index: out.grasp.unwrap_or(0),
             closed_opening_mm: out.closed_opening_mm,
+            tcp_path_base_m,
         })
+    }
+
+    /// The tool centre point along a plan's moves (their waypoints, by forward kinematics).
+    fn tcp_path(&self, plan: &robot::pick::PickPlan) -> Vec<[f64; 3]> {
+        plan.steps
+            .iter()
+            .filter_map(|step| match &step.action {
+                robot::pick::Action::Move(traj) => Some(traj),
+                robot::pick::Action::Grip { .. } => None,
+            })
+            .flat_map(|traj| traj.points())
+            .map(|q| {
+                let p = self.work.arm.base_from_gripper(q).translation.vector;
+                [p.x, p.y, p.z]
+            })
+            .collect()
     }
 
     /// A planning failure as the protocol reports it: `unreachable` when inverse kinematics
