@@ -7,7 +7,10 @@
 //! - `cell/lines3d`: the 3D lines of each capture;
 //! - `cell/located/<k>`: each located part's wireframe, labelled with its model, and its grasp
 //!   frame;
-//! - `cell/bins`: the bins, as the server's layout gives them;
+//! - `cell/bins`: the bins, as the server's layout gives them; `cell/fixed/*`: the table and
+//!   the bins' walls from the world file;
+//! - `cell/arm/<link>`: the arm's links (the URDF's collision shapes) where its kinematics put
+//!   them for the joints the server reports at the end of each cycle;
 //! - `cell/path`: the path planned for the tool centre point in each pick, as the server sends it;
 //! - `cell/truth/objects/<id>`: with a server started here, the objects' meshes where the
 //!   simulation has them after each cycle (evaluation's view, logged after the fact);
@@ -54,6 +57,38 @@ mod with_rerun {
         rec: rerun::RecordingStream,
         base_from_cam: Option<Isometry3<f64>>,
         located_logged: usize,
+        arm_logged: bool,
+    }
+
+    /// A mesh moved by `pose`, as rerun takes it.
+    fn mesh3d(m: &mesh::TriMesh, pose: &Isometry3<f64>, albedo: u32) -> rerun::Mesh3D {
+        rerun::Mesh3D::new(points(pose, m.vertices.iter().copied()))
+            .with_triangle_indices(m.triangles.iter().map(|t| rerun::datatypes::UVec3D::new(t[0], t[1], t[2])))
+            .with_albedo_factor(albedo)
+    }
+
+    /// A URDF collision primitive as a mesh in its link's frame (URDF cylinders run along z,
+    /// rapier's along y).
+    fn primitive_mesh(shape: &robot::arm::LinkShape) -> Option<mesh::TriMesh> {
+        use rapier3d::prelude::ColliderBuilder;
+        use robot::arm::Primitive;
+        let (builder, turn) = match shape.primitive {
+            Primitive::Box { half_extents: h } => (ColliderBuilder::cuboid(h.x as f32, h.y as f32, h.z as f32), false),
+            Primitive::Cylinder { radius, half_length } => {
+                (ColliderBuilder::cylinder(half_length as f32, radius as f32), true)
+            }
+            Primitive::Sphere { radius } => (ColliderBuilder::ball(radius as f32), false),
+            Primitive::Capsule { radius, half_length } => {
+                (ColliderBuilder::capsule_z(half_length as f32, radius as f32), false)
+            }
+        };
+        let along_z = if turn {
+            Isometry3::rotation(nalgebra::Vector3::x() * std::f64::consts::FRAC_PI_2)
+        } else {
+            Isometry3::identity()
+        };
+        let collider = builder.position(sim::convert::pose(&(shape.link_from_shape * along_z))).build();
+        sim::shape_mesh::collider_mesh(&collider, 0.35)
     }
 
     fn transform(pose: &Isometry3<f64>) -> rerun::Transform3D {
@@ -91,7 +126,7 @@ mod with_rerun {
                 .into(),
             ]));
             blueprint.send(&rec, rerun::blueprint::BlueprintActivation::default())?;
-            Ok(Recording { rec, base_from_cam: None, located_logged: 0 })
+            Ok(Recording { rec, base_from_cam: None, located_logged: 0, arm_logged: false })
         }
 
         pub fn text(&self, line: &str) -> anyhow::Result<()> {
@@ -274,6 +309,45 @@ mod with_rerun {
             Ok(())
         }
 
+        /// The cell's fixed parts from the world file (table, bin walls; not the floor), in the
+        /// base frame, once.
+        pub fn cell_layout(&self, scn: &sim::Scenario) -> anyhow::Result<()> {
+            let Some(robot) = &scn.world.robot else { return Ok(()) };
+            let base_from_world = robot.world_from_base().inverse();
+            for b in sim::scene::static_boxes(&scn.world).iter().filter(|b| b.name != "floor") {
+                let m = b.mesh();
+                let path = format!("cell/fixed/{}", b.name.replace(' ', "_"));
+                self.rec.log_static(path.as_str(), &mesh3d(&m, &base_from_world, 0x808080FF))?;
+            }
+            Ok(())
+        }
+
+        /// The arm's links where its kinematics put them for joints `q` and jaw `opening`
+        /// (meshes of the URDF's collision shapes, logged once; their poses each time).
+        pub fn arm(&mut self, arm: &robot::Arm, q: &robot::Joints, opening: f64) -> anyhow::Result<()> {
+            if !self.arm_logged {
+                for link in &arm.links {
+                    let mut m = mesh::TriMesh::default();
+                    for shape in &link.shapes {
+                        if let Some(piece) = primitive_mesh(shape) {
+                            m.append(&piece);
+                        }
+                    }
+                    if !m.triangles.is_empty() {
+                        let path = format!("cell/arm/{}", link.name);
+                        self.rec.log_static(path.as_str(), &mesh3d(&m, &Isometry3::identity(), 0x5A6A80FF))?;
+                    }
+                }
+                self.arm_logged = true;
+            }
+            for (link, pose) in arm.links.iter().zip(arm.link_poses(q, opening)) {
+                if !link.shapes.is_empty() {
+                    self.rec.log(format!("cell/arm/{}", link.name).as_str(), &transform(&pose))?;
+                }
+            }
+            Ok(())
+        }
+
         /// Flushes and closes the recording, so that `rerun rrd verify` accepts the file.
         pub fn finish(self) -> anyhow::Result<()> {
             self.rec.flush_blocking().map_err(|e| anyhow::anyhow!("closing the recording: {e}"))?;
@@ -319,6 +393,12 @@ mod without_rerun {
             Ok(())
         }
         pub fn truth(&self, _t: &TruthReply, _lib: &mesh::Library) -> anyhow::Result<()> {
+            Ok(())
+        }
+        pub fn cell_layout(&self, _scn: &sim::Scenario) -> anyhow::Result<()> {
+            Ok(())
+        }
+        pub fn arm(&mut self, _arm: &robot::Arm, _q: &robot::Joints, _opening: f64) -> anyhow::Result<()> {
             Ok(())
         }
         pub fn finish(self) -> anyhow::Result<()> {

@@ -50,6 +50,7 @@ pub struct Cycle {
     /// The arm's joints (by URDF name) and the simulated time at the end of the cycle, as the
     /// server's `status` gives them.
     pub joints: std::collections::BTreeMap<String, f64>,
+    pub gripper_opening_m: f64,
     pub sim_time_s: f64,
 }
 
@@ -133,6 +134,7 @@ pub fn run(
             timings_ms,
             cycle_s: 0.0,
             joints: Default::default(),
+            gripper_opening_m: 0.0,
             sim_time_s: capture.sim_time_s,
         };
         if cycle.located.is_empty() {
@@ -163,6 +165,7 @@ pub fn run(
         }
         let status = client.status()?;
         (cycle.joints, cycle.sim_time_s) = (status.joints, status.sim_time_s);
+        cycle.gripper_opening_m = status.gripper_opening_mm * 1e-3;
         cycle.cycle_s = start.elapsed().as_secs_f64();
         observe(RunEvent::Done(&cycle))?;
         let picked = cycle.chosen.is_some();

@@ -44,6 +44,8 @@ fn a_run_is_recorded_with_its_entities() {
         "cell/calibration/true_camera",
         "cell/bins",
         "cell/path",
+        "cell/arm/upper_arm",
+        "cell/fixed/table",
         "cell/truth/objects/1",
         "stages/match",
         "joints/shoulder",

@@ -296,6 +296,7 @@ fn table1(args: &BenchArgs, results: &[(&str, f64)], sliced: &mut StageTimes) ->
         timings_ms,
         cycle_s: 0.0,
         joints: Default::default(),
+        gripper_opening_m: 0.0,
         sim_time_s: 0.0,
     };
     let (rows, efficiency) = marvin::run::table1(std::slice::from_ref(&cycle));

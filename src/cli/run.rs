@@ -116,7 +116,7 @@ fn hand_eye(
 #[allow(clippy::too_many_arguments)]
 pub fn run_once(
     cell: &Cell,
-    library: &mesh::Library,
+    scn: &sim::Scenario,
     seed: u64,
     source: &HandEye,
     config: &RunConfig,
@@ -124,9 +124,15 @@ pub fn run_once(
     cycle_line: &mut dyn FnMut(&Cycle) -> String,
     mut recording: Option<&mut Recording>,
 ) -> anyhow::Result<Outcome> {
+    let library = &scn.library;
     let mut client = cell.connect()?;
     let local = cell.is_local();
     let (cam_from_base, calibration_error, calibration) = hand_eye(&mut client, library, source, seed, local, quiet)?;
+    // The arm as the recording draws it, from the world file's URDF.
+    let arm = match recording.is_some() {
+        true => Some(marvin::pick::Workcell::new(scn)?.arm),
+        false => None,
+    };
     if let Some(r) = recording.as_deref_mut() {
         if let Some(c) = &calibration {
             let truth = if local { Some(client.truth()?.cam_from_base.to_isometry("cam_from_base")?) } else { None };
@@ -135,6 +141,7 @@ pub fn run_once(
             r.calibration_known(&cam_from_base)?;
         }
         r.bins(&client.hello(std::env::var("MARVIN_TOKEN").ok().as_deref())?.bin_boxes)?;
+        r.cell_layout(scn)?;
     }
     client.set_hand_eye(WirePose::new(None, &cam_from_base))?;
     let mut truth = local.then(RunTruth::default);
@@ -165,8 +172,11 @@ pub fn run_once(
             }
             RunEvent::Done(c) => {
                 let line = cycle_line(c);
-                if let Some(r) = recording.as_deref_mut() {
+                if let (Some(r), Some(arm)) = (recording.as_deref_mut(), arm.as_ref()) {
                     r.cycle(c, &line)?;
+                    let q: robot::Joints =
+                        std::array::from_fn(|k| c.joints.get(&arm.joint(k).name).copied().unwrap_or(0.0));
+                    r.arm(arm, &q, c.gripper_opening_m)?;
                 }
             }
         }
@@ -247,7 +257,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
     let config = RunConfig { max_cycles: args.max_cycles, ..RunConfig::default() };
     let source = args.hand_eye.clone().map_or(HandEye::Calibrate, HandEye::File);
     let mut recording = args.rerun.as_ref().map(Recording::start).transpose()?;
-    let out = run_once(&cell, &scn.library, seed, &source, &config, quiet, &mut line, recording.as_mut())?;
+    let out = run_once(&cell, &scn, seed, &source, &config, quiet, &mut line, recording.as_mut())?;
     cell.stop()?;
     if let Some(r) = recording {
         r.finish()?;
@@ -335,7 +345,7 @@ pub fn eval(world: &Path, scenes: u64, seed: u64, json: bool) -> anyhow::Result<
         let clock = Instant::now();
         let cell = Cell::start(world, s, None)?;
         let known = HandEye::Known(cam_from_base);
-        let out = run_once(&cell, &scn.library, s, &known, &RunConfig::default(), true, &mut |_| String::new(), None)?;
+        let out = run_once(&cell, &scn, s, &known, &RunConfig::default(), true, &mut |_| String::new(), None)?;
         cell.stop()?;
         let truth = out.truth.context("a local server gives the truth")?;
         let r = &out.report;
