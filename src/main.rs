@@ -75,8 +75,8 @@ enum Command {
     Edges {
         /// A grey (or colour, read as grey) image, e.g. out/render/left.png.
         image: PathBuf,
-        /// Standard deviation of the Gaussian, pixels.
-        #[arg(long, default_value_t = 1.0)]
+        /// Standard deviation of the Gaussian, pixels (0.3-10).
+        #[arg(long, default_value_t = 1.0, value_parser = edges::parse_sigma, allow_negative_numbers = true)]
         sigma: f32,
         #[arg(long)]
         json: bool,

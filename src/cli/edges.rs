@@ -11,6 +11,17 @@ use vision::{CannyParams, EdgeString, Edgel, GreyImage, canny, link_strings};
 pub const MIN_STRING: usize = 5;
 
 /// Reads any image file as 8-bit grey, naming the file in every error.
+/// Smallest and largest Gaussian widths Canny takes, pixels: below 0.3 the kernel is a single
+/// tap (no smoothing, every pixel of noise an edge); above 10 it spans more than 60 pixels.
+pub const SIGMA_RANGE: (f32, f32) = (0.3, 10.0);
+
+/// `--sigma`: a finite width within [`SIGMA_RANGE`].
+pub fn parse_sigma(s: &str) -> Result<f32, String> {
+    let v: f32 = s.trim().parse().map_err(|e| format!("`{s}` is not a number: {e}"))?;
+    let (lo, hi) = SIGMA_RANGE;
+    if v.is_finite() && (lo..=hi).contains(&v) { Ok(v) } else { Err(format!("{v} is outside {lo}..={hi} pixels")) }
+}
+
 pub fn load_grey(path: &Path) -> anyhow::Result<GreyImage> {
     let img = image::open(path).with_context(|| format!("{}: cannot read as an image", path.display()))?;
     let grey = img.into_luma8();
