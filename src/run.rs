@@ -55,6 +55,21 @@ pub struct Cycle {
 }
 
 impl Cycle {
+    /// A cycle with these stage times and nothing else yet.
+    pub fn timed(timings_ms: Vec<(&'static str, f64)>) -> Cycle {
+        Cycle {
+            located: Vec::new(),
+            chosen: None,
+            outcome: None,
+            unplannable: 0,
+            timings_ms,
+            cycle_s: 0.0,
+            joints: Default::default(),
+            gripper_opening_m: 0.0,
+            sim_time_s: 0.0,
+        }
+    }
+
     pub fn vision_ms(&self) -> f64 {
         self.timings_ms.iter().filter(|(n, _)| matches!(*n, "slices" | "join" | "match")).map(|(_, ms)| ms).sum()
     }
@@ -126,17 +141,7 @@ pub fn run(
         observe(RunEvent::Located { cycle: k, located: &located })?;
         let mut timings_ms = fe.timings_ms.clone();
         timings_ms.extend([("match", match_ms), ("capture", capture_ms)]);
-        let mut cycle = Cycle {
-            located,
-            chosen: None,
-            outcome: None,
-            unplannable: 0,
-            timings_ms,
-            cycle_s: 0.0,
-            joints: Default::default(),
-            gripper_opening_m: 0.0,
-            sim_time_s: capture.sim_time_s,
-        };
+        let mut cycle = Cycle { located, sim_time_s: capture.sim_time_s, ..Cycle::timed(timings_ms) };
         if cycle.located.is_empty() {
             cycle.cycle_s = start.elapsed().as_secs_f64();
             observe(RunEvent::Done(&cycle))?;

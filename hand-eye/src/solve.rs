@@ -3,7 +3,6 @@
 //! report the transforms, their covariance and the residuals.
 
 use crate::motion::{self, MotionError};
-use crate::pose::log;
 use crate::refine::{PARAMS, PointProblem, minimise, sigmas};
 pub use crate::sighting::Sighting;
 use nalgebra::{Isometry3, Point3, SMatrix};
@@ -175,18 +174,10 @@ fn point_rms(
     (sum / points.len().max(1) as f64).sqrt()
 }
 
-/// The error of `x` against `truth` as the covariance measures it: left rotation vector and
-/// translation difference, six numbers.
-pub fn error_vector(x: &Isometry3<f64>, truth: &Isometry3<f64>) -> [f64; 6] {
-    let w = log(&(truth.rotation * x.rotation.inverse()));
-    let t = truth.translation.vector - x.translation.vector;
-    [w.x, w.y, w.z, t.x, t.y, t.z]
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pose::pose_error;
+    use crate::pose::{log, pose_error};
     use nalgebra::{Matrix3, Translation3, UnitQuaternion, Vector3};
     use rand::rngs::StdRng;
     use rand::{RngExt, SeedableRng};
@@ -248,6 +239,14 @@ mod tests {
         let (dt, dr) = pose_error(&s.gripper_from_flag, &y);
         assert!(dt < 1e-9 && dr < 1e-9, "gripper_from_flag off by {dt} m, {dr} rad");
         assert!(s.residual_mm_rms < 1e-6 && s.dropped.is_empty());
+    }
+
+    /// The error of an estimate against the synthetic truth as the covariance measures it: left
+    /// rotation vector and translation difference, six numbers.
+    fn error_vector(x: &Isometry3<f64>, truth: &Isometry3<f64>) -> [f64; 6] {
+        let w = log(&(truth.rotation * x.rotation.inverse()));
+        let t = truth.translation.vector - x.translation.vector;
+        [w.x, w.y, w.z, t.x, t.y, t.z]
     }
 
     /// The error of `cam_from_base` against the truth, in units of the reported covariance: its

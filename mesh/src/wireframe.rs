@@ -83,14 +83,37 @@ pub fn marking_edges(mesh: &TriMesh, min_angle_deg: f64) -> Vec<Segment3> {
 /// Albedo difference across an edge for it to be a marking.
 const MARKING_CONTRAST: f32 = 0.1;
 
+/// Which vertices a merged segment may run through.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Through {
+    /// Only those no other edge touches (feature edges: a corner where a third edge meets ends
+    /// a segment).
+    FreeVertices,
+    /// Any vertex (a pattern's lines cross each other and run on).
+    Crossings,
+}
+
+/// Joins feature edges that continue each other in a straight line through a vertex that
+/// no other feature edge touches.
+fn merge_collinear(mesh: &TriMesh, edges: &[(u32, u32)]) -> Vec<Segment3> {
+    merge(mesh, edges, Through::FreeVertices)
+}
+
 /// Joins edges that continue each other in a straight line, through any vertex.
 fn merge_straight(mesh: &TriMesh, edges: &[(u32, u32)]) -> Vec<Segment3> {
+    merge(mesh, edges, Through::Crossings)
+}
+
+/// Edges joined into straight segments: from each edge not yet used, walk both ways onto the
+/// edge that continues it straight on, through the vertices `through` allows.
+fn merge(mesh: &TriMesh, edges: &[(u32, u32)], through: Through) -> Vec<Segment3> {
     let mut at_vertex: HashMap<u32, Vec<usize>> = HashMap::new();
     for (i, &(a, b)) in edges.iter().enumerate() {
         at_vertex.entry(a).or_default().push(i);
         at_vertex.entry(b).or_default().push(i);
     }
     let p = |v: u32| mesh.vertices[v as usize];
+    let other_end = |e: usize, v: u32| if edges[e].0 == v { edges[e].1 } else { edges[e].0 };
     let mut used = vec![false; edges.len()];
     let mut out = Vec::new();
     for start in 0..edges.len() {
@@ -104,56 +127,17 @@ fn merge_straight(mesh: &TriMesh, edges: &[(u32, u32)]) -> Vec<Segment3> {
         for (end, sign) in [(1usize, 1.0), (0usize, -1.0)] {
             loop {
                 let here = ends[end];
-                let straight_on = at_vertex[&here].iter().copied().find(|&e| {
-                    let (x, y) = edges[e];
-                    let far = if x == here { y } else { x };
-                    !used[e] && (p(far) - p(here)).normalize().dot(&dir) * sign > 1.0 - 1e-9
-                });
+                let touching = &at_vertex[&here];
+                if through == Through::FreeVertices && touching.len() != 2 {
+                    break;
+                }
+                let straight_on = touching
+                    .iter()
+                    .copied()
+                    .find(|&e| !used[e] && (p(other_end(e, here)) - p(here)).normalize().dot(&dir) * sign > 1.0 - 1e-9);
                 let Some(next) = straight_on else { break };
-                let (x, y) = edges[next];
                 used[next] = true;
-                ends[end] = if x == here { y } else { x };
-            }
-        }
-        out.push(Segment3 { a: p(ends[0]), b: p(ends[1]) });
-    }
-    out
-}
-
-/// Joins feature edges that continue each other in a straight line through a vertex that
-/// no other feature edge touches.
-fn merge_collinear(mesh: &TriMesh, edges: &[(u32, u32)]) -> Vec<Segment3> {
-    let mut at_vertex: HashMap<u32, Vec<usize>> = HashMap::new();
-    for (i, &(a, b)) in edges.iter().enumerate() {
-        at_vertex.entry(a).or_default().push(i);
-        at_vertex.entry(b).or_default().push(i);
-    }
-    let p = |v: u32| mesh.vertices[v as usize];
-    let mut used = vec![false; edges.len()];
-    let mut out = Vec::new();
-    for start in 0..edges.len() {
-        if used[start] {
-            continue;
-        }
-        used[start] = true;
-        let (a, b) = edges[start];
-        let dir = (p(b) - p(a)).normalize();
-        let mut ends = [a, b];
-        for (end, sign) in [(1usize, 1.0), (0usize, -1.0)] {
-            // Walk away from the segment through vertices of degree two.
-            while let [e1, e2] = at_vertex[&ends[end]].as_slice() {
-                let next = if used[*e1] { *e2 } else { *e1 };
-                if used[next] {
-                    break;
-                }
-                let (x, y) = edges[next];
-                let far = if x == ends[end] { y } else { x };
-                let step = (p(far) - p(ends[end])).normalize() * sign;
-                if step.dot(&dir) < 1.0 - 1e-9 {
-                    break;
-                }
-                used[next] = true;
-                ends[end] = far;
+                ends[end] = other_end(next, here);
             }
         }
         out.push(Segment3 { a: p(ends[0]), b: p(ends[1]) });

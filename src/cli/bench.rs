@@ -288,34 +288,13 @@ fn table1(args: &BenchArgs, results: &[(&str, f64)], sliced: &mut StageTimes) ->
             .map(|&n| (n, sliced.median(n)))
             .collect();
     timings_ms.push(("match", named("match")));
-    let cycle = marvin::run::Cycle {
-        located: Vec::new(),
-        chosen: None,
-        outcome: None,
-        unplannable: 0,
-        timings_ms,
-        cycle_s: 0.0,
-        joints: Default::default(),
-        gripper_opening_m: 0.0,
-        sim_time_s: 0.0,
-    };
-    let (rows, efficiency) = marvin::run::table1(std::slice::from_ref(&cycle));
+    let (rows, efficiency) = marvin::run::table1(&[marvin::run::Cycle::timed(timings_ms)]);
     if args.json {
         return emit(&serde_json::json!({ "table1": rows, "parallel_efficiency": efficiency }).to_string());
     }
-    emit(&format!(
-        "Table 1 (median of {} runs, ms; the front end's stages in processor time over 8 slices):",
-        args.runs
-    ))?;
-    for r in &rows {
-        emit(&format!("  {:<15} {:>9.1}   paper {:>6.0}", r.stage, r.measured_ms, r.paper_ms))?;
-    }
-    let total = rows.last().map_or(f64::NAN, |r| r.measured_ms);
-    emit(&format!(
-        "  speed-up over the transputers {:.0}x; the slices' parallel efficiency {:.0}% (paper: over 80%)",
-        10_000.0 / total,
-        efficiency * 100.0
-    ))
+    let heading =
+        format!("Table 1 (median of {} runs, ms; the front end's stages in processor time over 8 slices):", args.runs);
+    super::output::table1(&heading, &rows, efficiency)
 }
 
 fn server(args: &ServerBenchArgs) -> anyhow::Result<()> {

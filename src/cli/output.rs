@@ -49,3 +49,18 @@ impl Progress {
         }
     }
 }
+
+/// Table 1's rows beside the paper's, under `heading`, with the speed-up and the slices'
+/// parallel efficiency.
+pub fn table1(heading: &str, rows: &[marvin::run::Table1Row], efficiency: f64) -> anyhow::Result<()> {
+    emit(heading)?;
+    for r in rows {
+        emit(&format!("  {:<15} {:>9.1}   paper {:>6.0}", r.stage, r.measured_ms, r.paper_ms))?;
+    }
+    let total = rows.last().map_or(f64::NAN, |r| r.measured_ms);
+    emit(&format!(
+        "  speed-up over the transputers {:.0}x; the slices' parallel efficiency {:.0}% (paper: over 80%)",
+        10_000.0 / total,
+        efficiency * 100.0
+    ))
+}

@@ -313,16 +313,11 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
     if let Some((mm, deg)) = out.calibration_error {
         emit(&format!("calibration: {mm:.2} mm, {deg:.3} deg from the true camera pose"))?;
     }
-    emit("Table 1 (median per cycle, ms; the front end's stages in processor time over 8 slices):")?;
-    let total = rows.last().map_or(f64::NAN, |r| r.measured_ms);
-    for r in &rows {
-        emit(&format!("  {:<15} {:>9.1}   paper {:>6.0}", r.stage, r.measured_ms, r.paper_ms))?;
-    }
-    emit(&format!(
-        "  speed-up over the transputers {:.0}x; the slices' parallel efficiency {:.0}% (paper: over 80%)",
-        10_000.0 / total,
-        efficiency * 100.0
-    ))
+    super::output::table1(
+        "Table 1 (median per cycle, ms; the front end's stages in processor time over 8 slices):",
+        &rows,
+        efficiency,
+    )
 }
 
 /// `marvin eval run`: seeded end-to-end runs, one calibration (on the first seed's scene)
