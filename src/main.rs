@@ -103,7 +103,7 @@ enum Command {
         #[arg(long, requires = "disparity")]
         rectified: bool,
         /// Disparity range MIN:MAX in pixels, for --rectified images.
-        #[arg(long, value_parser = stereo::parse_range)]
+        #[arg(long, value_parser = stereo::parse_range, allow_hyphen_values = true)]
         disparity: Option<(f32, f32)>,
         /// Horizontal slices processed in parallel and joined, as MARVIN's processors did (1: the
         /// whole image at once). Calibrated pairs only; rectified input runs whole.
@@ -181,7 +181,7 @@ enum Command {
         #[arg(long)]
         truth: bool,
         /// Close connections idle this long, seconds.
-        #[arg(long, default_value_t = marvin::protocol::IDLE_TIMEOUT_S)]
+        #[arg(long, default_value_t = marvin::protocol::IDLE_TIMEOUT_S, value_parser = cli::args::seconds, allow_negative_numbers = true)]
         idle_timeout_s: f64,
     },
     /// Hand-eye calibration: the arm holds the calibration flag at poses over the workspace the

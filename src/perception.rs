@@ -25,7 +25,12 @@ pub fn stereo_calibration(rig: &RigCalibration) -> anyhow::Result<StereoCalibrat
         world_from_cam,
     };
     let left_from_right = rig.left_from_right.to_isometry("calibration.left_from_right")?;
-    Ok(StereoCalibration { left: camera(&rig.left, Isometry3::identity()), right: camera(&rig.right, left_from_right) })
+    let calib = StereoCalibration {
+        left: camera(&rig.left, Isometry3::identity()),
+        right: camera(&rig.right, left_from_right),
+    };
+    calib.check().map_err(|(field, message)| anyhow!("the capture's calibration: field `{field}`: {message}"))?;
+    Ok(calib)
 }
 
 /// A captured pair, decoded.

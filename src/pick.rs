@@ -70,6 +70,8 @@ pub struct PickOutcome {
     pub worst_tracking_step: Option<String>,
     /// Opening of the closed fingers on the object, mm (the object's width if all went well).
     pub closed_opening_mm: Option<f64>,
+    /// The width across the jaws of the grasp planned, mm: what `closed_opening_mm` should be.
+    pub grasp_width_mm: Option<f64>,
 }
 
 /// A scene in the physics world with the arm in it.
@@ -193,6 +195,7 @@ impl<'a> PickCell<'a> {
             max_tracking_error: 0.0,
             worst_tracking_step: None,
             closed_opening_mm: None,
+            grasp_width_mm: None,
         };
         if let Some(body) = target {
             self.name_object(body, &mut out);
@@ -205,6 +208,7 @@ impl<'a> PickCell<'a> {
             }
         };
         out.grasp = Some(plan.grasp_index);
+        out.grasp_width_mm = Some(plan.grasp.width * 1e3);
         self.execute(&plan, target, &mut out);
         if !out.placed {
             self.recover();
@@ -453,16 +457,16 @@ pub const CLEARING_PASSES: usize = 3;
 
 /// Clears the table: picks every object in turn, the highest first (as a heap needs), each
 /// planned from the objects' poses at that moment; objects that fail are tried again in later
-/// passes unless they came to rest inside the bin anyway. One outcome per object: its last.
-pub fn clear_scene(scn: &Scenario, work: &Workcell, scene: &Scene) -> Result<Vec<PickOutcome>> {
+/// passes unless they came to rest inside the bin anyway. Every attempt is kept, object by object.
+pub fn clear_scene(scn: &Scenario, work: &Workcell, scene: &Scene) -> Result<Vec<ObjectPicks>> {
     let mut cell = PickCell::new(scn, work, scene)?;
-    let mut last: Vec<Option<PickOutcome>> = vec![None; scene.objects.len()];
+    let mut picks: Vec<ObjectPicks> =
+        scene.objects.iter().map(|o| ObjectPicks { object: o.id, attempts: Vec::new() }).collect();
     for pass in 0..CLEARING_PASSES {
-        let mut todo: Vec<u32> = scene
-            .objects
+        let mut todo: Vec<u32> = picks
             .iter()
-            .map(|o| o.id)
-            .filter(|id| last[*id as usize - 1].as_ref().is_none_or(|o| !o.placed && !cell.in_bin(*id)))
+            .filter(|p| p.last().is_none_or(|o| !o.placed && !cell.in_bin(p.object)))
+            .map(|p| p.object)
             .collect();
         let mut progress = false;
         while !todo.is_empty() {
@@ -473,13 +477,32 @@ pub fn clear_scene(scn: &Scenario, work: &Workcell, scene: &Scene) -> Result<Vec
             let seed = scene.seed.wrapping_mul(31).wrapping_add(next as u64 + 1000 * pass as u64);
             let outcome = cell.pick(next, seed)?;
             progress |= outcome.placed;
-            last[next as usize - 1] = Some(outcome);
+            picks.iter_mut().find(|p| p.object == next).expect("every object listed").attempts.push(outcome);
         }
         if !progress {
             break;
         }
     }
-    Ok(last.into_iter().flatten().collect())
+    Ok(picks)
+}
+
+/// Every pick tried at one object while clearing a scene, in order: the last says how it ended.
+#[derive(Debug, Clone, Serialize)]
+pub struct ObjectPicks {
+    pub object: u32,
+    pub attempts: Vec<PickOutcome>,
+}
+
+impl ObjectPicks {
+    /// The pick that decided the object's fate, if any was tried.
+    pub fn last(&self) -> Option<&PickOutcome> {
+        self.attempts.last()
+    }
+
+    /// Whether the object ended in the bin.
+    pub fn cleared(&self) -> bool {
+        self.last().is_some_and(|o| o.placed)
+    }
 }
 
 /// The scenario with its clutter replaced by one `model`, dropped over the same region.

@@ -494,6 +494,10 @@ pub struct TruthReply {
     pub world_from_base: WirePose,
     pub world_from_cam: WirePose,
     pub cam_from_base: WirePose,
+    /// Why the scene the cell started from had not settled (still moving at the time limit, or
+    /// objects wedged into each other), if it had not.
+    #[serde(default)]
+    pub unsettled: Option<String>,
 }
 
 #[cfg(test)]

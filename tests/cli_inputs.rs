@@ -70,3 +70,117 @@ fn a_calibration_without_a_baseline_or_with_mismatched_cameras_is_refused() {
         assert!(e.contains(name) && e.contains(want), "{name}: {e}");
     }
 }
+
+/// Every count, seed, slice number and duration on the command line is checked by clap before
+/// anything runs; the error names the flag and the value.
+#[test]
+fn numbers_out_of_range_on_the_command_line_are_refused_naming_them() {
+    let world = "worlds/widgets.toml";
+    let cases: [(&[&str], &str, &str); 9] = [
+        (&["eval", "locate", world, "--scenes", "0"], "--scenes", "0"),
+        (&["eval", "pick", world, "--trials", "0"], "--trials", "0"),
+        (&["eval", "vision", world, "--scenes", "1", "--slices", "0"], "--slices", "0"),
+        (&["eval", "vision", world, "--seed", "18446744073709551615"], "--seed", "18446744073709551615"),
+        (&["eval", "calibrate", world, "--poses", "2"], "--poses", "2"),
+        (&["bench", "vision", "--runs", "0"], "--runs", "0"),
+        (&["serve", world, "--idle-timeout-s", "nan"], "--idle-timeout-s", "NaN"),
+        (&["serve", world, "--idle-timeout-s", "-3"], "--idle-timeout-s", "-3"),
+        (&["run", world, "--max-cycles", "0"], "--max-cycles", "0"),
+    ];
+    for (args, flag, value) in cases {
+        let o = marvin(args);
+        assert!(!o.status.success(), "{args:?} was accepted");
+        let e = stderr(&o);
+        assert!(e.contains(flag) && e.contains(value), "{args:?}: {e}");
+    }
+}
+
+#[test]
+fn a_disparity_range_that_is_none_is_refused() {
+    let img = image(&scratch("inputs_disparity"));
+    let img = img.to_str().unwrap();
+    for bad in ["0:inf", "nan:10", "5:5", "-1e9:10"] {
+        let o = marvin(&["stereo", "--left", img, "--right", img, "--rectified", "--disparity", bad]);
+        assert!(!o.status.success(), "--disparity {bad} was accepted");
+        let e = stderr(&o);
+        assert!(e.contains("--disparity") && e.contains(bad), "--disparity {bad}: {e}");
+    }
+}
+
+/// A calibration file whose camera could not project (a focal length that is no length, a
+/// principal point off the image, a rotation that is not one) is refused naming the field.
+#[test]
+fn an_incoherent_camera_in_a_calibration_is_refused_naming_the_field() {
+    let dir = scratch("inputs_camera");
+    let img = image(&dir);
+    let img = img.to_str().unwrap();
+    let good = StereoCalibration {
+        left: PinholeCamera::looking_at(
+            (64, 64),
+            100.0,
+            [31.5, 31.5],
+            Point3::new(-0.1, -0.7, 0.6),
+            Point3::origin(),
+            Vector3::z(),
+        ),
+        right: PinholeCamera::looking_at(
+            (64, 64),
+            100.0,
+            [31.5, 31.5],
+            Point3::new(0.1, -0.7, 0.6),
+            Point3::origin(),
+            Vector3::z(),
+        ),
+    };
+    let text = serde_json::to_string(&good).unwrap();
+    let mut negative = good.clone();
+    negative.left.fx = -100.0;
+    let mut off_image = good.clone();
+    off_image.right.cy = 500.0;
+    let mut doc: serde_json::Value = serde_json::from_str(&text).unwrap();
+    doc["right"]["world_from_cam"]["rotation_xyzw"] = serde_json::json!([0.0, 0.0, 0.0, 1.5]);
+    for (name, body, want) in [
+        ("negative.json", serde_json::to_string(&negative).unwrap(), "left.fx"),
+        ("off_image.json", serde_json::to_string(&off_image).unwrap(), "right.cy"),
+        ("stretched.json", doc.to_string(), "unit quaternion"),
+    ] {
+        let path = dir.join(name);
+        std::fs::write(&path, body).unwrap();
+        let o = marvin(&["stereo", "--left", img, "--right", img, "--calib", path.to_str().unwrap()]);
+        assert!(!o.status.success(), "{name} was accepted");
+        let e = stderr(&o);
+        assert!(e.contains(name) && e.contains(want), "{name}: {e}");
+    }
+    let path = dir.join("good.json");
+    std::fs::write(&path, text).unwrap();
+    assert!(marvin(&["stereo", "--left", img, "--right", img, "--calib", path.to_str().unwrap()]).status.success());
+}
+
+/// A world whose clutter asks for no objects, or holds a number that is none, is refused by
+/// every verb that reads it, naming file, line and field.
+#[test]
+fn a_world_with_an_empty_clutter_entry_or_a_nan_is_refused() {
+    let dir = scratch("inputs_world");
+    let text = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("worlds/widgets.toml")).unwrap();
+    for (name, from, to, field) in [
+        ("zero.toml", "{ model = \"wedge\" }", "{ model = \"wedge\", count = 0 }", "clutter.objects[4].count"),
+        (
+            "nan.toml",
+            "focal_px = 1000.0\nposition_m = [0.1",
+            "focal_px = nan\nposition_m = [0.1",
+            "cameras.right.focal_px",
+        ),
+    ] {
+        assert!(text.contains(from), "{from}");
+        let bad = text.replacen(from, to, 1);
+        let line = bad.lines().position(|l| l.contains(to.lines().next().unwrap())).unwrap() + 1;
+        let path = dir.join(name);
+        std::fs::write(&path, &bad).unwrap();
+        for verb in ["render", "locate"] {
+            let o = marvin(&[verb, path.to_str().unwrap()]);
+            assert!(!o.status.success(), "{verb} {name} was accepted");
+            let e = stderr(&o);
+            assert!(e.contains(&format!("{name}:{line}")) && e.contains(field), "{verb} {name}: {e}");
+        }
+    }
+}

@@ -39,8 +39,14 @@ fn edges_json_lists_edgels_and_strings() {
     assert!(strings.iter().all(|s| s.as_array().unwrap().len() >= 5));
 }
 
+/// The 3D lines `marvin stereo` prints lie on the surfaces the renderer drew: each line's
+/// midpoint, projected into the left image, is as deep as the depth map there (within 2 mm of
+/// the nearest and farthest surface in a 7x7 window, as a line on an occluding edge lies on the
+/// nearer side). Lines on the robot's column (ids >= 1000, whose silhouettes the two cameras see
+/// differently) are left out. Measured on this scene: 98.5% of 57 lines, so 90% leaves room for
+/// noise and still fails if disparities or the triangulation go wrong.
 #[test]
-fn stereo_json_lists_matches_with_disparities_in_range() {
+fn stereo_json_lines_lie_on_the_rendered_surfaces() {
     let dir = rendered();
     let out = marvin(&[
         "stereo",
@@ -54,10 +60,35 @@ fn stereo_json_lists_matches_with_disparities_in_range() {
     ]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    let matches = doc["matches"].as_array().unwrap();
-    assert!(matches.len() > 500, "{} matches", matches.len());
-    // 0.2 m baseline, f = 1000 px, the workspace 0.6-1.6 m away.
-    assert!(matches.iter().all(|m| (125.0..=334.0).contains(&m["disparity"].as_f64().unwrap())));
+    assert!(doc["matches"].as_array().unwrap().len() > 500);
+    let calib = mesh::StereoCalibration::load(&dir.join("scene.json")).unwrap();
+    let depth = image::open(dir.join("depth_left.png")).unwrap().into_luma16();
+    let ids = image::open(dir.join("ids_left.png")).unwrap().into_luma16();
+    let xyz = |v: &serde_json::Value| -> [f64; 3] { std::array::from_fn(|k| v[k].as_f64().unwrap()) };
+    let (mut on_surface, mut judged) = (0, 0);
+    for line in doc["lines3d"].as_array().unwrap() {
+        let (a, b) = (xyz(&line["a"]), xyz(&line["b"]));
+        let mid = nalgebra::Point3::from(std::array::from_fn::<f64, 3, _>(|k| (a[k] + b[k]) / 2.0));
+        let Some(px) = calib.left.project_cam(&mid) else { continue };
+        let (u, v) = (px.x.round() as i64, px.y.round() as i64);
+        let window: Vec<(u32, u32)> = (-3..=3)
+            .flat_map(|dy| (-3..=3).map(move |dx| (u + dx, v + dy)))
+            .filter(|&(x, y)| x >= 0 && y >= 0 && x < depth.width() as i64 && y < depth.height() as i64)
+            .map(|(x, y)| (x as u32, y as u32))
+            .collect();
+        if window.is_empty() || window.iter().any(|&(x, y)| ids.get_pixel(x, y)[0] >= 1000) {
+            continue;
+        }
+        let depths: Vec<f64> =
+            window.iter().map(|&(x, y)| depth.get_pixel(x, y)[0]).filter(|&d| d > 0).map(|d| d as f64 * 1e-4).collect();
+        let (near, far) = depths.iter().fold((f64::MAX, f64::MIN), |(n, f), &d| (n.min(d), f.max(d)));
+        judged += 1;
+        on_surface += usize::from(mid.z >= near - 0.002 && mid.z <= far + 0.002);
+    }
+    let fraction = on_surface as f64 / judged.max(1) as f64;
+    eprintln!("{on_surface} of {judged} 3D lines on the rendered surfaces ({fraction:.3})");
+    assert!(judged >= 30, "only {judged} lines to judge");
+    assert!(fraction >= 0.9, "{on_surface} of {judged} 3D lines lie on the rendered surfaces");
 }
 
 #[test]
@@ -93,19 +124,41 @@ fn locate_reports_poses_grasps_and_misses() {
     let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let located = doc["located"].as_array().unwrap();
     assert!(located.iter().any(|l| l["correct"] == true), "nothing located correctly: {doc}");
-    let xyz =
-        |v: &serde_json::Value| -> Vec<f64> { v.as_array().unwrap().iter().map(|c| c.as_f64().unwrap()).collect() };
-    for l in located {
-        let at = xyz(&l["cam_from_model"]["translation_m"]);
+    let xyz = |v: &serde_json::Value| -> [f64; 3] { std::array::from_fn(|k| v[k].as_f64().unwrap()) };
+    // The 3D lines each correct report rests on lie along the true object's feature edges:
+    // their midpoints' distance from the true wireframe (scene.json's pose; measured on this
+    // scene: median 0.3 mm, worst 1.6 mm) is within 1 mm at the median and 3 mm (the matcher's
+    // support distance) at worst.
+    let render = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli_locate_render");
+    let r = marvin(&["render", "worlds/widgets.toml", "--seed", "1", "--out", path(&render)]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let scene: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(render.join("scene.json")).unwrap()).unwrap();
+    let calib = mesh::StereoCalibration::load(&render.join("scene.json")).unwrap();
+    let library = mesh::Library::load_default().unwrap();
+    let mut distances = Vec::new();
+    for l in located.iter().filter(|l| l["correct"] == true) {
         assert!(l["grasp_cam_from_gripper"]["rotation_xyzw"].is_array());
-        // The 3D lines it rests on: at least the three a report needs, each near the object.
-        let lines = l["scene_lines"].as_array().unwrap();
-        assert!(lines.len() >= 3, "{l}");
-        for end in lines.iter().flat_map(|s| [&s["a_m"], &s["b_m"]]) {
-            let d = xyz(end).iter().zip(&at).map(|(p, q)| (p - q).powi(2)).sum::<f64>().sqrt();
-            assert!(d < 0.1, "a line end {d:.3} m from its object: {l}");
+        let truth = scene["objects"].as_array().unwrap().iter().find(|o| o["id"] == l["object"]).unwrap();
+        let pose: mesh::pose::PoseRecord = serde_json::from_value(truth["world_from_model"].clone()).unwrap();
+        let cam_from_model = calib.left.cam_from_world() * nalgebra::Isometry3::from(&pose);
+        let model = library.get(l["model"].as_str().unwrap()).unwrap();
+        for s in l["scene_lines"].as_array().unwrap() {
+            let (a, b) = (xyz(&s["a_m"]), xyz(&s["b_m"]));
+            let mid = nalgebra::Point3::from(std::array::from_fn::<f64, 3, _>(|k| (a[k] + b[k]) / 2.0));
+            let d = model
+                .wireframe
+                .iter()
+                .map(|e| distance_to_segment(&mid, &(cam_from_model * e.a), &(cam_from_model * e.b)))
+                .fold(f64::MAX, f64::min);
+            distances.push(d * 1e3);
         }
     }
+    distances.sort_by(f64::total_cmp);
+    eprintln!("support lines from the true wireframe, mm: {distances:.2?}");
+    assert!(distances.len() >= 10, "only {} support lines", distances.len());
+    assert!(distances[distances.len() / 2] <= 1.0, "median {:.2} mm", distances[distances.len() / 2]);
+    assert!(distances[distances.len() - 1] <= 3.0, "worst {:.2} mm", distances[distances.len() - 1]);
     assert!(doc["missed"].is_array());
     assert!(dir.join("located.png").exists());
     let bad = marvin(&["locate", "worlds/widgets.toml", "--models", "teapot"]);
@@ -127,4 +180,10 @@ fn locate_says_how_much_of_a_missed_object_was_visible() {
         assert!((0.0..=1.0).contains(&bracket[key].as_f64().unwrap()), "{key}: {bracket}");
     }
     assert!(bracket["supported_lines_at_truth"].is_u64());
+}
+
+fn distance_to_segment(p: &nalgebra::Point3<f64>, a: &nalgebra::Point3<f64>, b: &nalgebra::Point3<f64>) -> f64 {
+    let ab = b - a;
+    let t = ((p - a).dot(&ab) / ab.norm_squared().max(1e-18)).clamp(0.0, 1.0);
+    (p - (a + ab * t)).norm()
 }

@@ -31,6 +31,9 @@ fn the_simulated_arm_stands_where_the_planner_computes_it() {
     }
 }
 
+/// How far the closed jaws may be from the grasp's width, mm.
+const JAW_SINK_MM: f64 = 1.0;
+
 #[test]
 fn single_objects_are_picked_and_placed() {
     let (scn, work) = load(world()).unwrap();
@@ -41,8 +44,14 @@ fn single_objects_are_picked_and_placed() {
             let scene = Scene::settle(&one, seed);
             let out = PickCell::new(&one, &work, &scene).unwrap().pick(1, seed).unwrap();
             if out.placed {
-                // Held between the fingers, at the width the grasp says.
-                assert!(out.held && out.closed_opening_mm.unwrap() > 5.0, "{out:?}");
+                // Held between the fingers, closed to the width the grasp says (rapier's soft
+                // contacts let each 20 N pad sink 0.1-0.2 mm into a part: measured within
+                // JAW_SINK_MM of the grasp's width).
+                let (closed, width) = (out.closed_opening_mm.unwrap(), out.grasp_width_mm.unwrap());
+                assert!(
+                    out.held && (width - closed).abs() <= JAW_SINK_MM,
+                    "closed to {closed:.2} mm on {width:.2}: {out:?}"
+                );
             }
             outcomes.push(out);
         }
@@ -52,17 +61,23 @@ fn single_objects_are_picked_and_placed() {
     assert!(placed as f64 >= 0.95 * outcomes.len() as f64, "{placed}/{}: {failed:?}", outcomes.len());
 }
 
+/// Two clutter scenes of the reporting range (seeds from 10001: never used to choose anything)
+/// cleared object by object from true poses. Every attempt is kept: the first attempts are
+/// judged as well as how each object ended.
 #[test]
 fn clutter_is_cleared_into_the_bin() {
     let (scn, work) = load(world()).unwrap();
-    let mut outcomes = Vec::new();
-    for seed in [1, 2] {
-        outcomes.extend(clear_scene(&scn, &work, &Scene::settle(&scn, seed)).unwrap());
+    let mut objects = Vec::new();
+    for seed in [10001, 10002] {
+        objects.extend(clear_scene(&scn, &work, &Scene::settle(&scn, seed)).unwrap());
     }
-    assert_eq!(outcomes.len(), 14, "one outcome per object");
-    let placed = outcomes.iter().filter(|o| o.placed).count();
-    let failed: Vec<_> = outcomes.iter().filter(|o| !o.placed).collect();
-    assert!(placed as f64 >= 0.90 * outcomes.len() as f64, "{placed}/14: {failed:?}");
+    assert_eq!(objects.len(), 14, "every object listed");
+    let cleared = objects.iter().filter(|o| o.cleared()).count();
+    let first = objects.iter().filter(|o| o.attempts.first().is_some_and(|a| a.placed)).count();
+    let failed: Vec<_> = objects.iter().flat_map(|o| &o.attempts).filter(|a| !a.placed).collect();
+    assert!(objects.iter().all(|o| !o.attempts.is_empty()), "an object never tried");
+    assert!(cleared as f64 >= 0.90 * 14.0, "{cleared}/14 cleared: {failed:?}");
+    assert!(first as f64 >= 0.85 * 14.0, "{first}/14 at the first attempt: {failed:?}");
 }
 
 #[test]

@@ -18,6 +18,21 @@ impl From<&Isometry3<f64>> for PoseJson {
 }
 
 impl PoseJson {
+    /// Checks that the pose is one: finite, within `max_m` of the origin, its quaternion of unit
+    /// norm to 1e-3 (more is a slip, not rounding). Says what is wrong.
+    pub fn check(&self, max_m: f64) -> Result<(), String> {
+        let t = self.translation_m;
+        if !t.iter().all(|v| v.is_finite()) || t.iter().map(|v| v * v).sum::<f64>().sqrt() > max_m {
+            return Err(format!("translation_m {t:?} must be finite and within {max_m} m"));
+        }
+        let norm = self.rotation_xyzw.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let unit = (norm - 1.0).abs() <= 1e-3;
+        if !unit {
+            return Err(format!("rotation_xyzw {:?} is not a unit quaternion (norm {norm})", self.rotation_xyzw));
+        }
+        Ok(())
+    }
+
     /// The isometry (the quaternion normalised).
     pub fn to_isometry(&self) -> Isometry3<f64> {
         let [x, y, z] = self.translation_m;

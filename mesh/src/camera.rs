@@ -99,6 +99,36 @@ pub enum CalibrationError {
     Io { path: String, cause: std::io::Error },
     #[error("{path}: line {line}, column {column}: {message}")]
     Parse { path: String, line: usize, column: usize, message: String },
+    #[error("{path}: field `{field}`: {message}")]
+    Invalid { path: String, field: String, message: String },
+}
+
+/// Cameras nearer than this (metres) are no stereo pair: depth from disparity would divide by
+/// nearly nothing.
+pub const MIN_BASELINE_M: f64 = 1e-3;
+
+impl PinholeCamera {
+    /// Checks what a camera must be to project at all: a size, finite positive focal lengths,
+    /// a principal point in the image, a finite pose. Returns the field at fault (`fx`, ...).
+    pub fn check(&self) -> Result<(), (String, String)> {
+        if !(1..=8192).contains(&self.width) || !(1..=8192).contains(&self.height) {
+            return Err(("width".into(), format!("{}x{} is no image size (1-8192 each)", self.width, self.height)));
+        }
+        for (name, f) in [("fx", self.fx), ("fy", self.fy)] {
+            if !(f.is_finite() && f > 0.0) {
+                return Err((name.into(), format!("a focal length must be positive and finite, got {f}")));
+            }
+        }
+        for (name, c, size) in [("cx", self.cx, self.width), ("cy", self.cy, self.height)] {
+            if !(c.is_finite() && (0.0..=size as f64).contains(&c)) {
+                return Err((name.into(), format!("the principal point must lie in the image (0-{size}), got {c}")));
+            }
+        }
+        if !self.world_from_cam.translation.vector.iter().all(|v| v.is_finite()) {
+            return Err(("world_from_cam.translation_m".into(), "must be finite".into()));
+        }
+        Ok(())
+    }
 }
 
 impl StereoCalibration {
@@ -112,18 +142,47 @@ impl StereoCalibration {
         (self.right.centre() - self.left.centre()).norm()
     }
 
-    /// Reads a calibration file: either a bare `{left, right}` object or a `scene.json`
-    /// written by `marvin render`, whose `calibration` member is read.
+    /// Checks that the two cameras make a stereo pair: each a camera ([`PinholeCamera::check`]),
+    /// the same size, at least [`MIN_BASELINE_M`] apart. Returns the field at fault
+    /// (`left.fx`, `right.width`, ...).
+    pub fn check(&self) -> Result<(), (String, String)> {
+        for (side, cam) in [("left", &self.left), ("right", &self.right)] {
+            cam.check().map_err(|(field, message)| (format!("{side}.{field}"), message))?;
+        }
+        let (l, r) = (&self.left, &self.right);
+        if (l.width, l.height) != (r.width, r.height) {
+            return Err((
+                "right.width".into(),
+                format!(
+                    "the left camera is {}x{} but the right {}x{}: a stereo pair must match",
+                    l.width, l.height, r.width, r.height
+                ),
+            ));
+        }
+        let baseline = self.baseline();
+        if !(baseline.is_finite() && baseline >= MIN_BASELINE_M) {
+            return Err((
+                "right.world_from_cam".into(),
+                format!("the cameras are {baseline} m apart: stereo needs a baseline of at least {MIN_BASELINE_M} m"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Reads and checks a calibration file: either a bare `{left, right}` object or a
+    /// `scene.json` written by `marvin render`, whose `calibration` member is read.
     pub fn load(path: &Path) -> Result<Self, CalibrationError> {
         let shown = path.display().to_string();
         let text =
             std::fs::read_to_string(path).map_err(|cause| CalibrationError::Io { path: shown.clone(), cause })?;
-        Self::from_json(&text).map_err(|e| CalibrationError::Parse {
-            path: shown,
+        let calib = Self::from_json(&text).map_err(|e| CalibrationError::Parse {
+            path: shown.clone(),
             line: e.line(),
             column: e.column(),
             message: e.to_string(),
-        })
+        })?;
+        calib.check().map_err(|(field, message)| CalibrationError::Invalid { path: shown, field, message })?;
+        Ok(calib)
     }
 
     /// Parses a bare calibration or a scene file's `calibration` member.

@@ -33,9 +33,13 @@ impl From<&PoseRecord> for Isometry3<f64> {
     }
 }
 
+/// How far from 1 a written quaternion's norm may be: six written digits give ~1e-6; a norm
+/// further off is a typing slip or another convention, not rounding.
+pub const UNIT_TOLERANCE: f64 = 1e-3;
+
 /// Serde adapter for `Isometry3<f64>` fields, through [`PoseRecord`].
 pub mod iso_serde {
-    use super::PoseRecord;
+    use super::{PoseRecord, UNIT_TOLERANCE};
     use nalgebra::Isometry3;
     use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
@@ -46,10 +50,11 @@ pub mod iso_serde {
     pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Isometry3<f64>, D::Error> {
         let rec = PoseRecord::deserialize(d)?;
         let norm = rec.rotation_xyzw.iter().map(|c| c * c).sum::<f64>().sqrt();
-        if !(0.5..=2.0).contains(&norm) {
+        let unit = (norm - 1.0).abs() <= UNIT_TOLERANCE;
+        if !unit || !rec.translation_m.iter().all(|v| v.is_finite()) {
             return Err(serde::de::Error::custom(format!(
-                "rotation_xyzw {:?} is not a unit quaternion (norm {norm:.3})",
-                rec.rotation_xyzw
+                "rotation_xyzw {:?} is not a unit quaternion (norm {norm:.6}), or translation_m {:?} is not finite",
+                rec.rotation_xyzw, rec.translation_m
             )));
         }
         Ok(Isometry3::from(&rec))

@@ -101,13 +101,35 @@ impl Scene {
         for drops in 1..=MAX_DROPS {
             let mut scene = Self::drop_once(scn, seed, drop_seed);
             scene.settle.drops = drops;
-            let valid = scene.settle.at_rest && scene.settle.max_contact_depth <= MAX_CONTACT_DEPTH;
-            if valid || drops == MAX_DROPS {
+            if scene.unsettled().is_none() || drops == MAX_DROPS {
                 return scene;
             }
             drop_seed = drop_seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
         }
         unreachable!("the last drop always returns")
+    }
+
+    /// Why the scene is not the settled scene it should be, if it is not: still moving when the
+    /// settling time ran out, or two objects left wedged into each other, after every drop
+    /// allowed. Such a scene is still used (it is a function of the seed), but whoever evaluates
+    /// on it should say so.
+    pub fn unsettled(&self) -> Option<String> {
+        let s = &self.settle;
+        if !s.at_rest {
+            return Some(format!(
+                "seed {}: not at rest after {:.1} s simulated ({} drops; fastest object {:.3} m/s, {:.2} rad/s)",
+                self.seed, s.simulated_s, s.drops, s.max_linear_speed, s.max_angular_speed
+            ));
+        }
+        (s.max_contact_depth > MAX_CONTACT_DEPTH).then(|| {
+            format!(
+                "seed {}: two objects left {:.2} mm into each other after {} drops (at most {:.2} mm allowed)",
+                self.seed,
+                s.max_contact_depth * 1e3,
+                s.drops,
+                MAX_CONTACT_DEPTH * 1e3
+            )
+        })
     }
 
     fn drop_once(scn: &Scenario, seed: u64, drop_seed: u64) -> Scene {

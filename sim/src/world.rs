@@ -250,74 +250,145 @@ impl WorldFile {
             let inner = e.into_inner();
             invalid(line_at(text, inner.span()), field, inner.message().to_string())
         })?;
-        world.check().map_err(|(field, message)| invalid(line_of_field(text, &field), field, message))?;
+        let at_fault = |(field, message): (String, String)| invalid(line_of_field(text, &field), field, message);
+        first_non_finite(text).map_or(Ok(()), |field| {
+            Err(at_fault((field, "must be a finite number (nan and inf have no place in a world)".into())))
+        })?;
+        world.check().map_err(at_fault)?;
         Ok(world)
     }
 
     /// Checks what the types cannot: ranges and consistency. Returns the field at fault.
     fn check(&self) -> Result<(), (String, String)> {
-        let positive = |field: &str, v: f64| {
-            if v > 0.0 && v.is_finite() {
-                Ok(())
-            } else {
-                Err((field.to_string(), format!("must be positive, got {v}")))
-            }
-        };
-        let unit = |field: &str, v: f64| {
-            if (0.0..=1.0).contains(&v) {
-                Ok(())
-            } else {
-                Err((field.to_string(), format!("must be within 0-1, got {v}")))
-            }
-        };
+        self.check_table_and_light()?;
+        self.check_cameras()?;
+        self.check_render_and_physics()?;
+        self.check_clutter()?;
+        self.check_bins()
+    }
+
+    fn check_table_and_light(&self) -> Result<(), (String, String)> {
         positive("table.size_m[0]", self.table.size_m[0])?;
         positive("table.size_m[1]", self.table.size_m[1])?;
         positive("table.height_m", self.table.height_m)?;
-        unit("table.albedo", self.table.albedo)?;
-        unit("table.floor_albedo", self.table.floor_albedo)?;
+        fraction("table.albedo", self.table.albedo)?;
+        fraction("table.floor_albedo", self.table.floor_albedo)?;
         if self.light.direction.iter().all(|c| *c == 0.0) {
             return Err(("light.direction".into(), "must not be zero".into()));
         }
+        fraction("light.diffuse", self.light.diffuse)?;
+        fraction("light.ambient", self.light.ambient)
+    }
+
+    fn check_cameras(&self) -> Result<(), (String, String)> {
         for (side, cam) in [("left", &self.cameras.left), ("right", &self.cameras.right)] {
-            positive(&format!("cameras.{side}.focal_px"), cam.focal_px)?;
+            let field = |name: &str| format!("cameras.{side}.{name}");
+            within(&field("focal_px"), cam.focal_px, 1.0, 1e6, "pixels")?;
             if cam.resolution.contains(&0) || cam.resolution.iter().any(|&r| r > 8192) {
-                return Err((
-                    format!("cameras.{side}.resolution"),
-                    format!("must be within 1-8192, got {:?}", cam.resolution),
-                ));
+                return Err((field("resolution"), format!("must be within 1-8192, got {:?}", cam.resolution)));
             }
-            let to_target: f64 = (0..3).map(|i| (cam.look_at_m[i] - cam.position_m[i]).powi(2)).sum();
-            if to_target < 1e-12 {
-                return Err((format!("cameras.{side}.look_at_m"), "must differ from position_m".into()));
-            }
-        }
-        if !(self.render.noise_sigma.is_finite() && self.render.noise_sigma >= 0.0) {
-            return Err(("render.noise_sigma".into(), format!("must be >= 0, got {}", self.render.noise_sigma)));
-        }
-        positive("physics.timestep_s", self.physics.timestep_s)?;
-        positive("physics.settle_limit_s", self.physics.settle_limit_s)?;
-        if let Some(c) = &self.clutter {
-            if c.objects.is_empty() {
-                return Err(("clutter.objects".into(), "lists no objects".into()));
-            }
-            for i in 0..2 {
-                if c.region_m.min[i] >= c.region_m.max[i] {
-                    return Err((format!("clutter.region_m.max[{i}]"), "must exceed min".into()));
+            if let Some([u, v]) = cam.principal_point {
+                let [w, h] = cam.resolution.map(f64::from);
+                if !((0.0..=w).contains(&u) && (0.0..=h).contains(&v)) {
+                    return Err((field("principal_point"), format!("must lie in the {w}x{h} image, got [{u}, {v}]")));
                 }
             }
-            if !(0.0 < c.drop_height_m[0] && c.drop_height_m[0] <= c.drop_height_m[1]) {
+            let forward = sub(cam.look_at_m, cam.position_m);
+            if norm(forward) < 1e-6 {
+                return Err((field("look_at_m"), "must differ from position_m".into()));
+            }
+            if norm(cross(forward, cam.up)) < 1e-6 * norm(forward) * norm(cam.up) {
                 return Err((
-                    "clutter.drop_height_m".into(),
-                    format!("must be 0 < low <= high, got {:?}", c.drop_height_m),
+                    field("up"),
+                    format!("{:?} is parallel to the view direction (or zero): no image 'up'", cam.up),
                 ));
             }
         }
+        let (l, r) = (&self.cameras.left, &self.cameras.right);
+        if norm(sub(l.position_m, r.position_m)) < 1e-3 {
+            return Err((
+                "cameras.right.position_m".into(),
+                "is within 1 mm of the left camera's: a stereo pair needs a baseline".into(),
+            ));
+        }
+        if l.resolution != r.resolution {
+            return Err((
+                "cameras.right.resolution".into(),
+                format!(
+                    "{:?} differs from the left camera's {:?}: a stereo pair must match",
+                    r.resolution, l.resolution
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    fn check_render_and_physics(&self) -> Result<(), (String, String)> {
+        within("render.noise_sigma", self.render.noise_sigma, 0.0, 100.0, "grey levels")?;
+        within("physics.timestep_s", self.physics.timestep_s, 1e-5, 0.05, "seconds")?;
+        within("physics.settle_limit_s", self.physics.settle_limit_s, self.physics.timestep_s, 600.0, "seconds")?;
+        within("physics.friction", self.physics.friction, 0.0, 10.0, "")
+    }
+
+    fn check_clutter(&self) -> Result<(), (String, String)> {
+        let Some(c) = &self.clutter else { return Ok(()) };
+        if c.objects.is_empty() {
+            return Err(("clutter.objects".into(), "lists no objects".into()));
+        }
+        for (i, item) in c.objects.iter().enumerate() {
+            if !(1..=MAX_CLUTTER_COUNT).contains(&item.count) {
+                return Err((
+                    format!("clutter.objects[{i}].count"),
+                    format!(
+                        "must be within 1-{MAX_CLUTTER_COUNT}, got {} (leave the entry out to drop none)",
+                        item.count
+                    ),
+                ));
+            }
+        }
+        let half = [self.table.size_m[0] / 2.0, self.table.size_m[1] / 2.0];
+        for (i, half) in half.into_iter().enumerate() {
+            if c.region_m.min[i] >= c.region_m.max[i] {
+                return Err((format!("clutter.region_m.max[{i}]"), "must exceed min".into()));
+            }
+            for (end, v) in [("min", c.region_m.min[i]), ("max", c.region_m.max[i])] {
+                if v.abs() > half {
+                    return Err((
+                        format!("clutter.region_m.{end}[{i}]"),
+                        format!("{v} m lies off the table (its half-size is {half} m)"),
+                    ));
+                }
+            }
+        }
+        if !(0.0 < c.drop_height_m[0] && c.drop_height_m[0] <= c.drop_height_m[1] && c.drop_height_m[1] <= 5.0) {
+            return Err((
+                "clutter.drop_height_m".into(),
+                format!("must be 0 < low <= high <= 5 m, got {:?}", c.drop_height_m),
+            ));
+        }
+        Ok(())
+    }
+
+    fn check_bins(&self) -> Result<(), (String, String)> {
+        let half = [self.table.size_m[0] / 2.0, self.table.size_m[1] / 2.0];
         for (i, b) in self.bins.iter().enumerate() {
             for (k, s) in b.size_m.iter().enumerate() {
                 positive(&format!("bins[{i}].size_m[{k}]"), *s)?;
             }
             positive(&format!("bins[{i}].wall_m"), b.wall_m)?;
-            unit(&format!("bins[{i}].albedo"), b.albedo)?;
+            fraction(&format!("bins[{i}].albedo"), b.albedo)?;
+            for (k, half) in half.into_iter().enumerate() {
+                let reach = b.centre_m[k].abs() + b.size_m[k] / 2.0 + b.wall_m;
+                if reach > half + 1e-9 {
+                    return Err((
+                        format!("bins[{i}].centre_m[{k}]"),
+                        format!("puts the bin {reach:.3} m out, past the table's edge at {half} m"),
+                    ));
+                }
+            }
+            if self.bins[..i].iter().any(|other| other.name == b.name) {
+                return Err((format!("bins[{i}].name"), format!("`{}` names two bins", b.name)));
+            }
         }
         Ok(())
     }
@@ -372,6 +443,56 @@ impl WorldFile {
             None => mesh::library::default_dir(),
         }
     }
+}
+
+/// Most objects one clutter entry may drop.
+const MAX_CLUTTER_COUNT: u32 = 100;
+
+fn positive(field: &str, v: f64) -> Result<(), (String, String)> {
+    if v > 0.0 && v.is_finite() { Ok(()) } else { Err((field.to_string(), format!("must be positive, got {v}"))) }
+}
+
+fn fraction(field: &str, v: f64) -> Result<(), (String, String)> {
+    within(field, v, 0.0, 1.0, "")
+}
+
+fn within(field: &str, v: f64, lo: f64, hi: f64, unit: &str) -> Result<(), (String, String)> {
+    if (lo..=hi).contains(&v) {
+        Ok(())
+    } else {
+        let unit = if unit.is_empty() { String::new() } else { format!(" {unit}") };
+        Err((field.to_string(), format!("must be within {lo}-{hi}{unit}, got {v}")))
+    }
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+fn norm(a: [f64; 3]) -> f64 {
+    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
+}
+
+/// The first number in a TOML text that is `nan` or infinite, as a field path like
+/// `cameras.left.position_m[1]`. No world field means anything non-finite, and the range checks
+/// would let some through (every comparison with NaN is false).
+fn first_non_finite(text: &str) -> Option<String> {
+    fn walk(v: &toml::Value, path: String) -> Option<String> {
+        match v {
+            toml::Value::Float(f) if !f.is_finite() => Some(path),
+            toml::Value::Table(t) => {
+                t.iter().find_map(|(k, v)| walk(v, if path.is_empty() { k.clone() } else { format!("{path}.{k}") }))
+            }
+            toml::Value::Array(a) => a.iter().enumerate().find_map(|(i, v)| walk(v, format!("{path}[{i}]"))),
+            _ => None,
+        }
+    }
+    let table: toml::Table = toml::from_str(text).ok()?;
+    walk(&toml::Value::Table(table), String::new())
 }
 
 /// 1-based line of a byte offset (line 1 when unknown).
@@ -490,7 +611,7 @@ position_m = [0.0, 0.0, 0.015]
         let bad = GOOD.replace("focal_px = 900.0\nposition_m = [-0.1", "focal_px = -5.0\nposition_m = [-0.1");
         let (line, field, message) = error_of(&bad);
         assert_eq!((line, field.as_str()), (8, "cameras.left.focal_px"));
-        assert!(message.contains("positive"), "{message}");
+        assert!(message.contains("must be within") && message.contains("got -5"), "{message}");
         let bad = GOOD.to_string() + "[[bins]]\nname = \"a\"\ncentre_m = [0.3, 0.0]\nsize_m = [0.2, 0.0, 0.05]\n";
         let (line, field, _) = error_of(&bad);
         assert_eq!((line, field.as_str()), (21, "bins[0].size_m[1]"));
@@ -508,5 +629,84 @@ position_m = [0.0, 0.0, 0.015]
             }
             other => panic!("expected an error, got {other:?}"),
         }
+    }
+
+    #[test]
+    fn a_non_finite_number_anywhere_names_its_field() {
+        for (from, to, field) in [
+            ("position_m = [-0.1, -0.7, 0.6]", "position_m = [-0.1, nan, 0.6]", "cameras.left.position_m[1]"),
+            ("albedo = 0.3", "albedo = inf", "table.albedo"),
+            ("position_m = [0.0, 0.0, 0.015]", "position_m = [0.0, 0.0, -inf]", "objects[0].position_m[2]"),
+        ] {
+            let (line, f, message) = error_of(&GOOD.replace(from, to));
+            assert_eq!(f, field, "{to}");
+            assert!(message.contains("finite"), "{message}");
+            assert_eq!(GOOD.replace(from, to).lines().nth(line - 1).map(|l| l.contains(to)), Some(true), "line {line}");
+        }
+    }
+
+    #[test]
+    fn a_clutter_count_of_zero_is_refused() {
+        let with_clutter = GOOD.to_string()
+            + "[clutter]\nregion_m = { min = [-0.1, -0.1], max = [0.1, 0.1] }\nobjects = [{ model = \"block\", count = 0 }]\n";
+        let (line, field, message) = error_of(&with_clutter);
+        assert_eq!((line, field.as_str()), (20, "clutter.objects[0].count"));
+        assert!(message.contains("got 0"), "{message}");
+        assert!(WorldFile::parse(&with_clutter.replace("count = 0", "count = 2"), "w.toml").is_ok());
+    }
+
+    #[test]
+    fn incoherent_cameras_are_refused() {
+        let same_place = GOOD.replace("position_m = [0.1, -0.7, 0.6]", "position_m = [-0.1, -0.7, 0.6]");
+        let (_, field, message) = error_of(&same_place);
+        assert_eq!(field, "cameras.right.position_m");
+        assert!(message.contains("baseline"), "{message}");
+        // Looking straight down with the default up (+z): no image 'up'.
+        let straight_down = GOOD.replace(
+            "position_m = [-0.1, -0.7, 0.6]\nlook_at_m = [0.0, 0.0, 0.0]",
+            "position_m = [0.0, 0.0, 0.6]\nlook_at_m = [0.0, 0.0, 0.0]",
+        );
+        let (_, field, message) = error_of(&straight_down);
+        assert_eq!(field, "cameras.left.up");
+        assert!(message.contains("parallel"), "{message}");
+        let off_image = GOOD.replace(
+            "focal_px = 900.0\nposition_m = [0.1",
+            "focal_px = 900.0\nprincipal_point = [600.0, 10.0]\nposition_m = [0.1",
+        );
+        assert_eq!(error_of(&off_image).1, "cameras.right.principal_point");
+    }
+
+    #[test]
+    fn values_out_of_their_range_are_refused_naming_them() {
+        let cases = [
+            (
+                "seed = 3",
+                "seed = 3\n[physics]\ntimestep_s = 0.5\nsettle_limit_s = 8.0\nfriction = 0.7",
+                "physics.timestep_s",
+            ),
+            (
+                "seed = 3",
+                "seed = 3\n[physics]\ntimestep_s = 0.004\nsettle_limit_s = 8.0\nfriction = -1.0",
+                "physics.friction",
+            ),
+            (
+                "seed = 3",
+                "seed = 3\n[light]\ndirection = [0.0, 0.0, 1.0]\ndiffuse = 3.0\nambient = 0.2",
+                "light.diffuse",
+            ),
+            ("seed = 3", "seed = 3\n[render]\nnoise_sigma = -2.0", "render.noise_sigma"),
+        ];
+        for (from, to, field) in cases {
+            let (line, f, message) = error_of(&GOOD.replace(from, to));
+            assert_eq!(f, field, "{to}: {message}");
+            assert!(message.contains("must be within"), "{message}");
+            let key = field.rsplit('.').next().unwrap();
+            assert!(GOOD.replace(from, to).lines().nth(line - 1).unwrap().starts_with(key), "{field} at line {line}");
+        }
+        let off_table =
+            GOOD.to_string() + "[[bins]]\nname = \"a\"\ncentre_m = [0.45, 0.0]\nsize_m = [0.2, 0.2, 0.05]\n";
+        let (_, field, message) = error_of(&off_table);
+        assert_eq!(field, "bins[0].centre_m[0]");
+        assert!(message.contains("edge"), "{message}");
     }
 }

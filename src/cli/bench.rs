@@ -40,8 +40,8 @@ pub struct ServerBenchArgs {
     #[arg(long, default_value = "worlds/widgets.toml")]
     world: PathBuf,
     /// `status` round trips timed.
-    #[arg(long, default_value_t = 2000)]
-    runs: usize,
+    #[arg(long, default_value_t = 2000, value_parser = clap::value_parser!(u64).range(1..=super::args::MAX_COUNT))]
+    runs: u64,
     /// Print JSON: `{"server": {"status_p50_ms": X, "status_p99_ms": Y, "pick_plan_ms": Z, ...}}`.
     #[arg(long)]
     json: bool,
@@ -52,7 +52,7 @@ pub struct PhysicsArgs {
     #[arg(long, default_value = "worlds/widgets.toml")]
     world: PathBuf,
     /// Scenes cleared (seeds 1..=runs).
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u64).range(1..=super::args::MAX_COUNT))]
     runs: u64,
     /// Print JSON: `{"physics": {"realtime_factor": X, ...}}`.
     #[arg(long)]
@@ -64,8 +64,8 @@ pub struct BenchArgs {
     #[arg(long, default_value = "worlds/widgets.toml")]
     world: PathBuf,
     /// Timed repetitions.
-    #[arg(long, default_value_t = 50)]
-    runs: usize,
+    #[arg(long, default_value_t = 50, value_parser = clap::value_parser!(u64).range(1..=super::args::MAX_COUNT))]
+    runs: u64,
     /// Print JSON: `{"<stage>": {"median_ms": X}, ...}`.
     #[arg(long)]
     json: bool,
@@ -152,8 +152,9 @@ fn physics(args: &PhysicsArgs) -> anyhow::Result<()> {
     for seed in 1..=args.runs.max(1) {
         let scene = Scene::settle(&scn, seed);
         let started = Instant::now();
-        let outcomes = marvin::pick::clear_scene(&scn, &work, &scene)?;
+        let objects = marvin::pick::clear_scene(&scn, &work, &scene)?;
         let w = started.elapsed().as_secs_f64();
+        let outcomes: Vec<_> = objects.iter().flat_map(|o| &o.attempts).collect();
         let s: f64 = outcomes.iter().map(|o| o.simulated_s).sum();
         factors.push(s / w);
         (simulated, wall) = (simulated + s, wall + w);
@@ -198,7 +199,7 @@ fn render(args: &BenchArgs) -> anyhow::Result<()> {
     let s = setup(&args.world)?;
     let light = Light::from(&s.scn.world.light);
     let sigma = s.scn.world.render.noise_sigma;
-    let median = median_ms(args.runs, || {
+    let median = median_ms(args.runs as usize, || {
         let rs = RenderScene::new(s.scene.world_meshes(&s.scn.library), &light);
         std::hint::black_box(render_stereo(&rs, &s.calib, sigma, s.scn.world.seed));
     });
@@ -216,16 +217,16 @@ fn vision(args: &BenchArgs) -> anyhow::Result<()> {
     let params = vision::CannyParams::default();
     // Buffers reused from run to run, as a pipeline seeing frame after frame does.
     let (mut ws, mut edges) = (vision::front_end::canny::CannyWorkspace::default(), vision::EdgeMap::default());
-    let canny = median_ms(args.runs, || {
+    let canny = median_ms(args.runs as usize, || {
         ws.run(&left, &params, &mut edges);
         std::hint::black_box(&edges);
     });
     let mut whole_stages = StageTimes::default();
-    let whole = median_ms(args.runs, || {
+    let whole = median_ms(args.runs as usize, || {
         whole_stages.add(&marvin::front_end::run(&left, &right, &s.calib, &params).timings_ms);
     });
     let mut sliced_stages = StageTimes::default();
-    let sliced = median_ms(args.runs, || {
+    let sliced = median_ms(args.runs as usize, || {
         sliced_stages.add(&vision::front_end::slices::run_sliced(&left, &right, &s.calib, &params, 8).timings_ms);
     });
     let mut results = vec![("canny", canny)];
@@ -255,13 +256,13 @@ fn vision(args: &BenchArgs) -> anyhow::Result<()> {
     let lines: Vec<vision::matcher::Seg> =
         fe.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
     let evidence = vision::matcher::verify::ImageEvidence::of(&s.calib.left, &fe);
-    let image_evidence = median_ms(args.runs, || {
+    let image_evidence = median_ms(args.runs as usize, || {
         std::hint::black_box(vision::matcher::verify::ImageEvidence::of(&s.calib.left, &fe));
     });
-    let matching = median_ms(args.runs, || {
+    let matching = median_ms(args.runs as usize, || {
         std::hint::black_box(vision::matcher::locate_all(&models, &lines, &mp, Some(&evidence)));
     });
-    let cycle = median_ms(args.runs, || {
+    let cycle = median_ms(args.runs as usize, || {
         let fe = vision::front_end::slices::run_sliced(&left, &right, &s.calib, &params, 8);
         let lines: Vec<vision::matcher::Seg> =
             fe.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
@@ -307,7 +308,7 @@ fn server(args: &ServerBenchArgs) -> anyhow::Result<()> {
     for _ in 0..50 {
         client.status()?;
     }
-    let mut ms: Vec<f64> = Vec::with_capacity(args.runs);
+    let mut ms: Vec<f64> = Vec::with_capacity(args.runs as usize);
     for _ in 0..args.runs.max(1) {
         let t = Instant::now();
         client.status()?;

@@ -29,6 +29,8 @@ pub struct Truth {
     pub cam_from_base: Option<Isometry3<f64>>,
     /// The flag in the gripper, from the physics, at each capture.
     pub flag_in_gripper: Vec<Isometry3<f64>>,
+    /// Why the cell's scene had not settled, if it had not.
+    pub unsettled: Option<String>,
 }
 
 impl Truth {
@@ -96,6 +98,7 @@ pub fn run_once(
                 truth.flag_in_gripper.push(p.to_isometry("tool_in_gripper")?);
             }
             truth.cam_from_base = Some(t.cam_from_base.to_isometry("cam_from_base")?);
+            truth.unsettled = t.unsettled;
         }
         Ok(())
     };
@@ -191,7 +194,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
 pub fn eval(world: &Path, trials: u64, seed: u64, poses: usize, json: bool) -> anyhow::Result<()> {
     let scn = sim::Scenario::load(world)?;
     let (mut t_err, mut r_err, mut creep) = (Vec::new(), Vec::new(), Vec::new());
-    let (mut used, mut total, mut failed) = (0usize, 0usize, Vec::new());
+    let (mut used, mut total, mut failed, mut unsettled) = (0usize, 0usize, Vec::new(), 0usize);
     let progress = super::output::Progress::new(trials, json);
     for k in 0..trials {
         let s = seed + k;
@@ -205,6 +208,7 @@ pub fn eval(world: &Path, trials: u64, seed: u64, poses: usize, json: bool) -> a
                 t_err.push(mm);
                 r_err.push(deg);
                 creep.extend(truth.flag_creep_mm());
+                unsettled += usize::from(truth.unsettled.is_some());
                 used += c.solution.used.iter().filter(|u| **u).count();
                 total += c.poses.len();
                 let used = c.solution.used.iter().filter(|u| **u).count();
@@ -228,6 +232,7 @@ pub fn eval(world: &Path, trials: u64, seed: u64, poses: usize, json: bool) -> a
         "flag_creep_mm_max": creep.iter().copied().fold(0.0, f64::max),
         "flag_creep_mm_median": q(&creep, 0.5),
         "failed": failed,
+        "unsettled_scenes": unsettled,
     });
     if json { emit(&report.to_string()) } else { emit(&serde_json::to_string_pretty(&report)?) }
 }

@@ -19,17 +19,18 @@ pub enum EvalTarget {
     /// `endpoint_err_mm_median` and `_p90` (3D line ends from the nearest true feature edge),
     /// `coverage` (of visible feature-edge length in pieces >= 20 px long in the image, the part
     /// a 3D line runs along within 3 mm and 10 deg), `timings_ms` (median per stage: with slices,
-    /// each stage's processor time summed over the slices, then `slices` and `join` wall time).
+    /// each stage's processor time summed over the slices, then `slices` and `join` wall time),
+    /// `unsettled_scenes` (scenes that did not come to rest, evaluated anyway).
     Vision {
         world: PathBuf,
-        #[arg(long, default_value_t = 20)]
+        #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u64).range(1..=super::args::MAX_COUNT))]
         scenes: u64,
         /// First seed; scene k uses seed + k.
-        #[arg(long, default_value_t = 1)]
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(..=super::args::MAX_FIRST_SEED))]
         seed: u64,
         /// Slices of the front end (1: whole images).
-        #[arg(long, default_value_t = 8)]
-        slices: usize,
+        #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u16).range(1..=64))]
+        slices: u16,
         #[arg(long)]
         json: bool,
     },
@@ -38,16 +39,18 @@ pub enum EvalTarget {
     ///
     /// JSON keys: `cleared_fraction` (objects in the bin at the end of all objects on the table at
     /// the start), `pick_success_rate` (placed of picks tried, every attempt counted),
-    /// `attempts_per_object` (picks per object placed), `wrong_model_picks` (picks at a pose where
-    /// no object of the model chosen lay within 20 mm), `cycles_mean`, `cycle_s_mean` (wall),
-    /// `vision_cycle_ms_median` (front end and matcher), `failures` (by kind, every attempt),
-    /// `stopped_by`, `calibration_error`.
+    /// `first_attempt_success_rate` (of the first pick at each object, which object from the
+    /// truth afterwards, the share placed), `attempts_per_object` (picks per object placed),
+    /// `wrong_model_picks` (picks at a pose where no object of the model chosen lay within
+    /// 20 mm), `cycles_mean`, `cycle_s_mean` (wall), `vision_cycle_ms_median` (front end and
+    /// matcher), `failures` (by kind, every attempt, those later retried included),
+    /// `stopped_by`, `calibration_error`, `unsettled_scenes`.
     Run {
         world: PathBuf,
-        #[arg(long, default_value_t = 20)]
+        #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u64).range(1..=super::args::MAX_COUNT))]
         scenes: u64,
         /// First seed; scene k uses seed + k.
-        #[arg(long, default_value_t = 1)]
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(..=super::args::MAX_FIRST_SEED))]
         seed: u64,
         #[arg(long)]
         json: bool,
@@ -58,34 +61,39 @@ pub enum EvalTarget {
     /// JSON keys: `translation_err_mm_median`, `_p90`, `rotation_err_deg_median`, `_p90` (the
     /// solved `cam_from_base` against the true one), `sightings_used_fraction` (poses whose
     /// sighting the solve used), `flag_creep_mm_max`, `_median` (how far the flag moved in the
-    /// jaws between the first and last sighting, from the physics), `failed`.
+    /// jaws between the first and last sighting, from the physics), `failed`, `unsettled_scenes`.
     Calibrate {
         world: PathBuf,
-        #[arg(long, default_value_t = 10)]
+        #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u64).range(1..=super::args::MAX_COUNT))]
         trials: u64,
         /// First seed; trial k uses seed + k.
-        #[arg(long, default_value_t = 1)]
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(..=super::args::MAX_FIRST_SEED))]
         seed: u64,
         /// Poses per calibration.
-        #[arg(long, default_value_t = 20)]
-        poses: usize,
+        #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u16).range(3..=500))]
+        poses: u16,
         #[arg(long)]
         json: bool,
     },
     /// Physical picks with the simulated arm, planned from true poses, judged from the physics.
     ///
-    /// JSON keys: `success_rate` (placed in the bin, of all picks: each of `--trials` seeded
-    /// clutter scenes of the world cleared object by object, the highest first),
-    /// `single_success_rate` (each library model but the calibration flag alone, dropped at
-    /// `--trials` seeded poses over the clutter region), `single_by_model`, `failures` (counts by
-    /// kind: `unplanned`, `miss`, `slip`, `drop`, `outside bin`), `picks`,
-    /// `simulated_s`, `wall_s`.
+    /// Clutter: each of `--trials` seeded scenes is cleared object by object, the highest first;
+    /// an object whose pick fails is tried again once the others have gone (3 passes at most).
+    /// JSON keys: `cleared_fraction` (objects in the bin at the end, of all objects; this was
+    /// `success_rate`), `first_attempt_success_rate` (objects placed by their first pick),
+    /// `pick_success_rate` (placed, of every pick tried), `attempts_per_object`, `failures`
+    /// (every failed pick by kind, those later retried included: `unplanned`, `miss`, `slip`,
+    /// `drop`, `outside bin`), `failures_left_on_table` (the last failure of each object not
+    /// cleared). Single: each library model but the calibration flag alone, dropped at
+    /// `--trials` seeded poses over the clutter region, picked once: `single_success_rate`,
+    /// `single_by_model`, `single_failures`. Also `objects`, `picks`, `unsettled_scenes`
+    /// (scenes that did not come to rest, used anyway), `simulated_s`, `wall_s`.
     Pick {
         world: PathBuf,
-        #[arg(long, default_value_t = 20)]
+        #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u64).range(1..=super::args::MAX_COUNT))]
         trials: u64,
         /// First seed; trial k uses seed + k.
-        #[arg(long, default_value_t = 1)]
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(..=super::args::MAX_FIRST_SEED))]
         seed: u64,
         #[arg(long)]
         json: bool,
@@ -95,12 +103,12 @@ pub enum EvalTarget {
     /// JSON keys: `located_fraction` (of objects with >= 30% of their feature-edge length
     /// visible), `pos_err_mm_median`, `pos_err_mm_p90`, `rot_err_deg_median` (of correct reports,
     /// over each model's symmetries; correct = within 10 mm and 5 deg), `false_positive_fraction`
-    /// (of all reports), `match_ms_median`, `located_by_model`.
+    /// (of all reports), `match_ms_median`, `located_by_model`, `unsettled_scenes`.
     Locate {
         world: PathBuf,
-        #[arg(long, default_value_t = 50)]
+        #[arg(long, default_value_t = 50, value_parser = clap::value_parser!(u64).range(1..=super::args::MAX_COUNT))]
         scenes: u64,
-        #[arg(long, default_value_t = 1)]
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(..=super::args::MAX_FIRST_SEED))]
         seed: u64,
         #[arg(long)]
         json: bool,
@@ -109,12 +117,12 @@ pub enum EvalTarget {
 
 pub fn run(target: EvalTarget) -> anyhow::Result<()> {
     let (world, scenes, seed, slices, json) = match target {
-        EvalTarget::Vision { world, scenes, seed, slices, json } => (world, scenes, seed, slices, json),
+        EvalTarget::Vision { world, scenes, seed, slices, json } => (world, scenes, seed, slices as usize, json),
         EvalTarget::Locate { world, scenes, seed, json } => return run_locate(&world, scenes, seed, json),
         EvalTarget::Pick { world, trials, seed, json } => return super::eval_pick::run(&world, trials, seed, json),
         EvalTarget::Run { world, scenes, seed, json } => return super::run::eval(&world, scenes, seed, json),
         EvalTarget::Calibrate { world, trials, seed, poses, json } => {
-            return super::calibrate::eval(&world, trials, seed, poses, json);
+            return super::calibrate::eval(&world, trials, seed, poses as usize, json);
         }
     };
     let scn = Scenario::load(&world)?;
@@ -123,9 +131,11 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
     let (mut total, mut on_arm) = (DisparityStats::default(), DisparityStats::default());
     let mut lines = LineStats::default();
     let mut timings: BTreeMap<&'static str, Vec<f64>> = BTreeMap::new();
+    let mut unsettled = 0;
     for k in 0..scenes {
         let s = seed + k;
-        let scene = Scene::settle(&scn, s);
+        let (scene, settled) = super::output::settle(&scn, s);
+        unsettled += usize::from(!settled);
         let (l, r) = render_stereo(
             &RenderScene::new(scene.world_meshes(&scn.library), &light),
             &calib,
@@ -184,6 +194,7 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
             "lines3d_per_scene": lines.arm_lines as f64 / scenes.max(1) as f64,
         },
         "timings_ms": medians,
+        "unsettled_scenes": unsettled,
     });
     if json { emit(&report.to_string()) } else { emit(&serde_json::to_string_pretty(&report)?) }
 }
@@ -193,17 +204,19 @@ pub struct Pipeline {
     pub scene: Scene,
     pub left: sim::render::Frame,
     pub front_end: vision::front_end::FrontEnd,
+    /// Whether the scene came to rest (a warning was printed if not).
+    pub settled: bool,
 }
 
 pub fn run_pipeline(scn: &Scenario, seed: u64) -> Pipeline {
     let calib = sim::rig::calibration(&scn.world.cameras);
-    let scene = Scene::settle(scn, seed);
+    let (scene, settled) = super::output::settle(scn, seed);
     let rs = RenderScene::new(scene.world_meshes(&scn.library), &Light::from(&scn.world.light));
     let (l, r) = render_stereo(&rs, &calib, scn.world.render.noise_sigma, seed);
     let left = vision::GreyImage::new(l.width, l.height, l.image.clone()).expect("a rendered frame is whole");
     let right = vision::GreyImage::new(r.width, r.height, r.image).expect("a rendered frame is whole");
     let front_end = vision::front_end::slices::run_sliced(&left, &right, &calib, &vision::CannyParams::default(), 8);
-    Pipeline { scene, left: l, front_end }
+    Pipeline { scene, left: l, front_end, settled }
 }
 
 /// The library's models as the matcher sees them (the calibration flag is not sought).
@@ -226,9 +239,11 @@ fn run_locate(world: &std::path::Path, scenes: u64, seed: u64, json: bool) -> an
     let mut total = LocateStats::default();
     let mut match_ms = Vec::new();
     let params = vision::matcher::MatchParams::default();
+    let mut unsettled = 0;
     for k in 0..scenes {
         let s = seed + k;
         let p = run_pipeline(&scn, s);
+        unsettled += usize::from(!p.settled);
         let lines: Vec<vision::matcher::Seg> =
             p.front_end.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
         let clock = std::time::Instant::now();
@@ -254,6 +269,7 @@ fn run_locate(world: &std::path::Path, scenes: u64, seed: u64, json: bool) -> an
         "rot_err_deg_median": quantile(&total.rot_err_deg, 0.5),
         "false_positive_fraction": total.false_positives as f64 / total.reports.max(1) as f64,
         "match_ms_median": quantile(&match_ms, 0.5),
+        "unsettled_scenes": unsettled,
         "located_by_model": total.by_model.iter().map(|(m, [e, l])| (m.clone(), *l as f64 / (*e).max(1) as f64)).collect::<BTreeMap<_, _>>(),
     });
     if json { emit(&report.to_string()) } else { emit(&serde_json::to_string_pretty(&report)?) }

@@ -1,80 +1,137 @@
-//! `marvin eval pick`: seeded physical picks, in clutter and one object at a time.
+//! `marvin eval pick`: seeded physical picks, in clutter and one object at a time, every attempt
+//! counted.
 
-use super::output::emit;
-use marvin::pick::{PickOutcome, clear_scene, load, pickable_models, single_object_scenario};
+use super::output::{emit, settle};
+use marvin::pick::{ObjectPicks, PickOutcome, clear_scene, load, pickable_models, single_object_scenario};
 use rayon::prelude::*;
-use sim::Scene;
+use serde_json::json;
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::Instant;
 
+/// A scene's outcome and whether it settled.
+struct Trial<T> {
+    outcome: T,
+    settled: bool,
+}
+
 pub fn run(world: &Path, trials: u64, seed: u64, json: bool) -> anyhow::Result<()> {
     let (scn, work) = load(world)?;
     let started = Instant::now();
-    let clutter: Vec<PickOutcome> = (0..trials)
+    let progress = super::output::Progress::new(trials * (1 + pickable_models(&scn).len() as u64), json);
+    let clutter: Vec<Trial<Vec<ObjectPicks>>> = (0..trials)
         .into_par_iter()
         .map(|k| {
-            let scene = Scene::settle(&scn, seed + k);
-            let outcomes = clear_scene(&scn, &work, &scene)?;
-            let placed = outcomes.iter().filter(|o| o.placed).count();
-            eprintln!("clutter scene {}: {placed}/{} placed", seed + k, outcomes.len());
-            Ok(outcomes)
+            let (scene, settled) = settle(&scn, seed + k);
+            let objects = clear_scene(&scn, &work, &scene)?;
+            let cleared = objects.iter().filter(|o| o.cleared()).count();
+            let attempts: usize = objects.iter().map(|o| o.attempts.len()).sum();
+            progress.step(format!(
+                "clutter seed {}: {cleared} of {} cleared in {attempts} picks",
+                seed + k,
+                objects.len()
+            ));
+            Ok(Trial { outcome: objects, settled })
         })
-        .collect::<anyhow::Result<Vec<_>>>()?
-        .into_iter()
-        .flatten()
-        .collect();
+        .collect::<anyhow::Result<_>>()?;
     let models = pickable_models(&scn);
     let jobs: Vec<(String, u64)> =
         models.iter().flat_map(|m| (0..trials).map(move |k| (m.clone(), seed + k))).collect();
-    let single: Vec<PickOutcome> = jobs
+    let single: Vec<Trial<PickOutcome>> = jobs
         .par_iter()
         .map(|(model, s)| {
             let one = single_object_scenario(&scn, model);
-            let scene = Scene::settle(&one, *s);
+            let (scene, settled) = settle(&one, *s);
             let out = marvin::pick::PickCell::new(&one, &work, &scene)?.pick(1, *s)?;
-            if !out.placed {
-                eprintln!("single {model} seed {s}: {} ({})", out.result, out.detail.as_deref().unwrap_or(""));
-            }
-            Ok(out)
+            progress.step(format!("single {model} seed {s}: {} {}", out.result, out.detail.as_deref().unwrap_or("")));
+            Ok(Trial { outcome: out, settled })
         })
-        .collect::<anyhow::Result<Vec<_>>>()?;
+        .collect::<anyhow::Result<_>>()?;
+    progress.finish();
     let wall_s = started.elapsed().as_secs_f64();
-    let rate = |v: &[&PickOutcome]| v.iter().filter(|o| o.placed).count() as f64 / v.len().max(1) as f64;
-    let mut by_model = BTreeMap::new();
-    for m in &models {
-        let of: Vec<&PickOutcome> = single.iter().filter(|o| &o.model == m).collect();
-        by_model.insert(m.clone(), rate(&of));
-    }
-    let mut failures: BTreeMap<String, usize> = BTreeMap::new();
-    for o in clutter.iter().chain(&single).filter(|o| !o.placed) {
-        *failures.entry(o.result.clone()).or_default() += 1;
-    }
-    let all_clutter: Vec<&PickOutcome> = clutter.iter().collect();
-    let all_single: Vec<&PickOutcome> = single.iter().collect();
-    let simulated_s: f64 = clutter.iter().chain(&single).map(|o| o.simulated_s).sum();
-    let report = serde_json::json!({
-        "success_rate": rate(&all_clutter),
-        "single_success_rate": rate(&all_single),
-        "single_by_model": by_model,
-        "failures": failures,
-        "picks": {"clutter": clutter.len(), "single": single.len()},
-        "simulated_s": simulated_s,
-        "wall_s": wall_s,
-    });
+    let objects: Vec<&ObjectPicks> = clutter.iter().flat_map(|t| &t.outcome).collect();
+    let report = report(&objects, &single, &models, wall_s, clutter.iter().filter(|t| !t.settled).count());
     if json {
         return emit(&serde_json::to_string_pretty(&report)?);
     }
-    emit(&format!(
-        "clutter: {:.3} of {} picks placed; single objects: {:.3} of {} placed",
-        rate(&all_clutter),
-        clutter.len(),
-        rate(&all_single),
-        single.len()
-    ))?;
-    for (m, r) in &by_model {
-        emit(&format!("  {m:<10} {r:.3}"))?;
+    print_summary(&report)
+}
+
+/// Placed of these picks, as a fraction.
+fn placed_fraction<'a>(picks: impl IntoIterator<Item = &'a PickOutcome>) -> f64 {
+    let (mut placed, mut all) = (0usize, 0usize);
+    for p in picks {
+        (placed, all) = (placed + p.placed as usize, all + 1);
     }
-    emit(&format!("failures: {failures:?}"))?;
-    emit(&format!("{simulated_s:.0} s simulated in {wall_s:.0} s"))
+    placed as f64 / all.max(1) as f64
+}
+
+/// Failed picks by kind.
+fn failures<'a>(picks: impl IntoIterator<Item = &'a PickOutcome>) -> BTreeMap<String, usize> {
+    let mut out = BTreeMap::new();
+    for p in picks.into_iter().filter(|p| !p.placed) {
+        *out.entry(p.result.clone()).or_default() += 1;
+    }
+    out
+}
+
+fn report(
+    objects: &[&ObjectPicks],
+    single: &[Trial<PickOutcome>],
+    models: &[String],
+    wall_s: f64,
+    unsettled_clutter: usize,
+) -> serde_json::Value {
+    let attempts: Vec<&PickOutcome> = objects.iter().flat_map(|o| &o.attempts).collect();
+    let firsts = objects.iter().filter_map(|o| o.attempts.first());
+    let lasts = objects.iter().filter_map(|o| o.last());
+    let single_picks: Vec<&PickOutcome> = single.iter().map(|t| &t.outcome).collect();
+    let by_model: BTreeMap<&String, f64> =
+        models.iter().map(|m| (m, placed_fraction(single_picks.iter().copied().filter(|o| &o.model == m)))).collect();
+    let simulated_s: f64 = attempts.iter().chain(&single_picks).map(|o| o.simulated_s).sum();
+    json!({
+        "cleared_fraction": objects.iter().filter(|o| o.cleared()).count() as f64 / objects.len().max(1) as f64,
+        "first_attempt_success_rate": placed_fraction(firsts),
+        "pick_success_rate": placed_fraction(attempts.iter().copied()),
+        "attempts_per_object": attempts.len() as f64 / objects.len().max(1) as f64,
+        "failures": failures(attempts.iter().copied()),
+        "failures_left_on_table": failures(lasts),
+        "single_success_rate": placed_fraction(single_picks.iter().copied()),
+        "single_by_model": by_model,
+        "single_failures": failures(single_picks.iter().copied()),
+        "objects": objects.len(),
+        "picks": {"clutter": attempts.len(), "single": single_picks.len()},
+        "unsettled_scenes": {
+            "clutter": unsettled_clutter,
+            "single": single.iter().filter(|t| !t.settled).count(),
+        },
+        "simulated_s": simulated_s,
+        "wall_s": wall_s,
+    })
+}
+
+fn print_summary(r: &serde_json::Value) -> anyhow::Result<()> {
+    let f = |k: &str| r[k].as_f64().unwrap_or(f64::NAN);
+    emit(&format!(
+        "clutter: {:.3} of {} objects cleared; {:.3} placed at the first attempt; {:.3} of {} picks placed ({:.2} an object)",
+        f("cleared_fraction"),
+        r["objects"],
+        f("first_attempt_success_rate"),
+        f("pick_success_rate"),
+        r["picks"]["clutter"],
+        f("attempts_per_object"),
+    ))?;
+    emit(&format!(
+        "  failures, every attempt: {}; of objects left on the table: {}",
+        r["failures"], r["failures_left_on_table"]
+    ))?;
+    emit(&format!("single objects: {:.3} of {} placed", f("single_success_rate"), r["picks"]["single"]))?;
+    if let Some(by) = r["single_by_model"].as_object() {
+        for (m, v) in by {
+            emit(&format!("  {m:<10} {:.3}", v.as_f64().unwrap_or(f64::NAN)))?;
+        }
+    }
+    emit(&format!("  failures: {}", r["single_failures"]))?;
+    emit(&format!("unsettled scenes: {}", r["unsettled_scenes"]))?;
+    emit(&format!("{:.0} s simulated in {:.0} s", f("simulated_s"), f("wall_s")))
 }

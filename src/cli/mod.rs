@@ -10,8 +10,10 @@
 //! - [`serve`]: the simulated cell and the robot server behind a socket.
 //! - [`eval`], [`eval_pick`]: the pipeline over seeded scenes, against the truth.
 //! - [`bench`]: medians of how fast things run.
-//! - [`output`]: printing that tolerates a reader going away.
+//! - [`output`]: printing that tolerates a reader going away, progress, settling with a warning.
+//! - [`args`]: parsers and limits for the command line's numbers.
 
+pub mod args;
 pub mod bench;
 pub mod calibrate;
 pub mod edges;

@@ -11,6 +11,17 @@ pub fn emit(line: &str) -> anyhow::Result<()> {
     }
 }
 
+/// Settles a seeded scene of `scn`, warning on stderr when it did not come to rest (the scene is
+/// used anyway: evaluations count such scenes). Returns the scene and whether it settled.
+pub fn settle(scn: &sim::Scenario, seed: u64) -> (sim::Scene, bool) {
+    let scene = sim::Scene::settle(scn, seed);
+    let why = scene.unsettled();
+    if let Some(why) = &why {
+        eprintln!("warning: an unsettled scene, {why}");
+    }
+    (scene, why.is_none())
+}
+
 /// Progress of a long evaluation on stderr: a bar on a terminal (indicatif), with a line per
 /// step above it; without a terminal the lines alone; under `--json` nothing.
 pub struct Progress {

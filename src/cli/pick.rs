@@ -2,7 +2,6 @@
 
 use super::output::emit;
 use marvin::pick::{PickCell, PickOutcome, clear_scene, load, single_object_scenario};
-use sim::Scene;
 use std::path::Path;
 use std::time::Instant;
 
@@ -23,11 +22,11 @@ pub fn run(
         scn = single_object_scenario(&scn, model);
     }
     let seed = seed.unwrap_or(scn.world.seed);
-    let scene = Scene::settle(&scn, seed);
+    let (scene, _) = super::output::settle(&scn, seed);
     let started = Instant::now();
     let outcomes = match object {
         Some(id) => vec![PickCell::new(&scn, &work, &scene)?.pick(id, seed)?],
-        None => clear_scene(&scn, &work, &scene)?,
+        None => clear_scene(&scn, &work, &scene)?.into_iter().flat_map(|o| o.attempts).collect(),
     };
     let wall_s = started.elapsed().as_secs_f64();
     if json {

@@ -2,9 +2,9 @@
 
 use anyhow::Context;
 use image::{ImageBuffer, Luma};
+use sim::Scenario;
 use sim::record::{DEPTH_UNIT_M, SceneRecord};
 use sim::render::{Frame, Light, RenderScene, render_stereo};
-use sim::{Scenario, Scene};
 use std::path::Path;
 use std::time::Instant;
 
@@ -12,13 +12,12 @@ pub fn run(world: &Path, seed: Option<u64>, out: &Path) -> anyhow::Result<()> {
     let scn = Scenario::load(world)?;
     let seed = seed.unwrap_or(scn.world.seed);
     let t0 = Instant::now();
-    let scene = Scene::settle(&scn, seed);
+    let (scene, _) = super::output::settle(&scn, seed);
     eprintln!(
-        "settled {} objects in {:.1} s simulated ({:.2} s wall){}",
+        "settled {} objects in {:.1} s simulated ({:.2} s wall)",
         scene.objects.len(),
         scene.settle.simulated_s,
         t0.elapsed().as_secs_f64(),
-        if scene.settle.at_rest { "" } else { " -- NOT at rest at the time limit" }
     );
     let calib = sim::rig::calibration(&scn.world.cameras);
     let t1 = Instant::now();

@@ -35,9 +35,24 @@ pub struct RunTruth {
     /// Objects on the table (not in a bin) at the start, and in a bin at the end.
     pub on_table_at_start: usize,
     pub in_bin_at_end: usize,
-    /// For each pick tried: whether an object of the chosen model lay within 20 mm of where
-    /// vision put it.
-    pub target_there: Vec<bool>,
+    /// For each pick tried: the object of the chosen model that lay within 20 mm of where
+    /// vision put it (its `id`), or `None` (a pick at nothing of that model).
+    pub targets: Vec<Option<u32>>,
+    /// Why the scene had not settled when the cell started, if it had not.
+    pub unsettled: Option<String>,
+}
+
+impl RunTruth {
+    /// Picks at a pose where no object of the model chosen lay.
+    pub fn wrong_picks(&self) -> usize {
+        self.targets.iter().filter(|t| t.is_none()).count()
+    }
+
+    /// For each pick tried, whether it was the first at its object (`false` for a wrong pick).
+    pub fn first_attempts(&self) -> Vec<bool> {
+        let mut seen = std::collections::BTreeSet::new();
+        self.targets.iter().map(|t| t.is_some_and(|id| seen.insert(id))).collect()
+    }
 }
 
 /// A run with everything evaluation needs: the report, the calibration's error (if calibrated
@@ -48,18 +63,21 @@ pub struct Outcome {
     pub calibration_error: CalibrationError,
 }
 
-/// Where vision's pose of `model` lies from the nearest true object of that model, metres.
-fn nearest_true(truth: &TruthReply, model: &str, cam_from_model: &Isometry3<f64>) -> Option<f64> {
+/// The nearest true object of `model` to vision's pose of it: its id and how far, metres.
+fn nearest_true(truth: &TruthReply, model: &str, cam_from_model: &Isometry3<f64>) -> Option<(u32, f64)> {
     let world_from_cam = truth.world_from_cam.to_isometry("world_from_cam").ok()?;
     let p = world_from_cam * cam_from_model;
     truth
         .objects
         .iter()
         .filter(|o| o.model == model)
-        .filter_map(|o| o.world_from_model.to_isometry("world_from_model").ok())
-        .map(|w| (w.translation.vector - p.translation.vector).norm())
-        .min_by(f64::total_cmp)
+        .filter_map(|o| Some((o.id, o.world_from_model.to_isometry("world_from_model").ok()?)))
+        .map(|(id, w)| (id, (w.translation.vector - p.translation.vector).norm()))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
 }
+
+/// A pick is at an object of the model chosen when one lies this near vision's pose, metres.
+const TARGET_THERE_M: f64 = 0.02;
 
 /// Where a run's hand-eye transform comes from.
 pub enum HandEye {
@@ -146,12 +164,15 @@ pub fn run_once(
     client.set_hand_eye(WirePose::new(None, &cam_from_base))?;
     let mut truth = local.then(RunTruth::default);
     if let Some(t) = truth.as_mut() {
-        t.on_table_at_start = client.truth()?.objects.iter().filter(|o| !o.in_bin).count();
+        let start = client.truth()?;
+        t.on_table_at_start = start.objects.iter().filter(|o| !o.in_bin).count();
+        t.unsettled = start.unsettled;
     }
     let mut before_pick = |c: &mut Client, _k: usize, l: &vision::matcher::Located| -> anyhow::Result<()> {
         if let Some(t) = truth.as_mut() {
             let now = c.truth()?;
-            t.target_there.push(nearest_true(&now, &l.model, &l.cam_from_model).is_some_and(|d| d < 0.02));
+            let nearest = nearest_true(&now, &l.model, &l.cam_from_model);
+            t.targets.push(nearest.filter(|(_, d)| *d < TARGET_THERE_M).map(|(id, _)| id));
         }
         Ok(())
     };
@@ -293,7 +314,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
             doc["truth"] = json!({
                 "on_table_at_start": t.on_table_at_start,
                 "in_bin_at_end": t.in_bin_at_end,
-                "wrong_model_picks": t.target_there.iter().filter(|x| !**x).count(),
+                "wrong_model_picks": t.wrong_picks(),
             });
         }
         if let Some((mm, deg)) = out.calibration_error {
@@ -307,7 +328,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
             "against the simulation's truth: {} of {} objects cleared into the bin; {} picks at nothing of the model chosen",
             t.in_bin_at_end,
             t.on_table_at_start,
-            t.target_there.iter().filter(|x| !**x).count()
+            t.wrong_picks()
         ))?;
     }
     if let Some((mm, deg)) = out.calibration_error {
@@ -332,6 +353,7 @@ pub fn eval(world: &Path, scenes: u64, seed: u64, json: bool) -> anyhow::Result<
     cell.stop()?;
     let progress = super::output::Progress::new(scenes, json);
     let (mut on_table, mut cleared, mut picks, mut placed, mut wrong) = (0, 0, 0, 0, 0);
+    let (mut first_attempts, mut first_placed, mut unsettled) = (0, 0, 0);
     let (mut cycles, mut cycle_s, mut vision_ms) = (0usize, Vec::new(), Vec::new());
     let mut all_failures: BTreeMap<String, usize> = BTreeMap::new();
     let mut stops: BTreeMap<&'static str, usize> = BTreeMap::new();
@@ -350,7 +372,13 @@ pub fn eval(world: &Path, scenes: u64, seed: u64, json: bool) -> anyhow::Result<
         );
         (on_table, cleared, picks, placed) =
             (on_table + truth.on_table_at_start, cleared + truth.in_bin_at_end, picks + p, placed + ok);
-        wrong += truth.target_there.iter().filter(|x| !**x).count();
+        wrong += truth.wrong_picks();
+        unsettled += usize::from(truth.unsettled.is_some());
+        let tried = r.cycles.iter().filter(|c| c.chosen.is_some());
+        for (c, first) in tried.zip(truth.first_attempts()) {
+            first_attempts += usize::from(first);
+            first_placed += usize::from(first && outcome_name(c) == "placed");
+        }
         cycles += r.cycles.len();
         cycle_s.extend(r.cycles.iter().map(|c| c.cycle_s));
         vision_ms.extend(r.cycles.iter().map(Cycle::vision_ms));
@@ -378,6 +406,7 @@ pub fn eval(world: &Path, scenes: u64, seed: u64, json: bool) -> anyhow::Result<
         "calibration_error": calibration_error.map(|(mm, deg)| json!({ "translation_mm": mm, "rotation_deg": deg })),
         "cleared_fraction": cleared as f64 / on_table.max(1) as f64,
         "pick_success_rate": placed as f64 / picks.max(1) as f64,
+        "first_attempt_success_rate": first_placed as f64 / first_attempts.max(1) as f64,
         "attempts_per_object": picks as f64 / placed.max(1) as f64,
         "wrong_model_picks": wrong,
         "cycles_mean": cycles as f64 / scenes.max(1) as f64,
@@ -385,6 +414,7 @@ pub fn eval(world: &Path, scenes: u64, seed: u64, json: bool) -> anyhow::Result<
         "vision_cycle_ms_median": q(&vision_ms, 0.5),
         "failures": all_failures,
         "stopped_by": stops,
+        "unsettled_scenes": unsettled,
     });
     if json { emit(&report.to_string()) } else { emit(&serde_json::to_string_pretty(&report)?) }
 }

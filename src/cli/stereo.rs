@@ -9,39 +9,25 @@ use serde::Serialize;
 use std::path::Path;
 use vision::{CannyParams, GreyImage};
 
+/// Largest disparity, either way, that `--disparity` takes: the widest image a camera may have.
+const MAX_DISPARITY_PX: f32 = 8192.0;
+
 /// Parses `MIN:MAX`.
 pub fn parse_range(s: &str) -> Result<(f32, f32), String> {
     let (a, b) = s.split_once(':').ok_or_else(|| format!("`{s}` is not MIN:MAX"))?;
     let parse = |v: &str| v.trim().parse::<f32>().map_err(|e| format!("`{v}` in `{s}`: {e}"));
     let (lo, hi) = (parse(a)?, parse(b)?);
+    let limit = MAX_DISPARITY_PX;
+    if !(lo.is_finite() && hi.is_finite() && lo.abs() <= limit && hi.abs() <= limit) {
+        return Err(format!("`{s}`: disparities must be finite and within -{limit}..={limit} pixels"));
+    }
     if lo < hi { Ok((lo, hi)) } else { Err(format!("`{s}`: MIN must be below MAX")) }
 }
-
-/// Cameras nearer than this (metres) are no stereo pair: depth from disparity would divide by
-/// nearly nothing.
-const MIN_BASELINE_M: f64 = 1e-3;
 
 pub fn geometry(calib: Option<&Path>, rectified: bool, disparity: Option<(f32, f32)>) -> anyhow::Result<Geometry> {
     match (calib, rectified, disparity) {
         (Some(path), false, None) => {
             let calib = mesh::StereoCalibration::load(path)?;
-            let baseline = calib.baseline();
-            if !(baseline.is_finite() && baseline >= MIN_BASELINE_M) {
-                bail!(
-                    "{}: the cameras are {baseline} m apart: stereo needs a baseline of at least {MIN_BASELINE_M} m",
-                    path.display()
-                );
-            }
-            if (calib.left.width, calib.left.height) != (calib.right.width, calib.right.height) {
-                bail!(
-                    "{}: the left camera is {}x{} but the right {}x{}: a stereo pair must match",
-                    path.display(),
-                    calib.left.width,
-                    calib.left.height,
-                    calib.right.width,
-                    calib.right.height
-                );
-            }
             Ok(Geometry::Calibrated(calib))
         }
         (None, true, Some((disparity_min, disparity_max))) => Ok(Geometry::Rectified { disparity_min, disparity_max }),

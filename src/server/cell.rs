@@ -73,6 +73,9 @@ pub(crate) fn run(
     };
     let seed = config.seed.unwrap_or(scn.world.seed);
     let scene = Scene::settle(&scn, seed);
+    if let Some(why) = scene.unsettled() {
+        tracing::warn!("an unsettled scene, {why}");
+    }
     let mut cell = match SimCell::new(&scn, &work, &scene, &config, seed) {
         Ok(c) => c,
         Err(e) => {
@@ -113,6 +116,8 @@ struct SimCell<'a> {
     motions: u64,
     /// The tool the operator handed into the gripper, if any.
     tool: Option<HeldTool>,
+    /// Why the scene had not settled when the cell started, if it had not (for `truth`).
+    unsettled: Option<String>,
 }
 
 /// A tool in the gripper: its name, body, and where the robot believes it sits in the gripper
@@ -153,6 +158,7 @@ impl<'a> SimCell<'a> {
             captures: 0,
             motions: 0,
             tool: None,
+            unsettled: scene.unsettled(),
         })
     }
 
@@ -584,6 +590,7 @@ impl<'a> SimCell<'a> {
             world_from_base: WirePose::new(None, &self.work.world_from_base),
             world_from_cam: WirePose::new(None, &world_from_cam),
             cam_from_base: WirePose::new(None, &(world_from_cam.inverse() * self.work.world_from_base)),
+            unsettled: self.unsettled.clone(),
         }
     }
 }
