@@ -43,8 +43,9 @@ fn edges_json_lists_edgels_and_strings() {
 /// midpoint, projected into the left image, is as deep as the depth map there (within 2 mm of
 /// the nearest and farthest surface in a 7x7 window, as a line on an occluding edge lies on the
 /// nearer side). Lines on the robot's column (ids >= 1000, whose silhouettes the two cameras see
-/// differently) are left out. Measured on this scene: 98.5% of 57 lines, so 90% leaves room for
-/// noise and still fails if disparities or the triangulation go wrong.
+/// differently) are left out. Measured on this scene: 69 of 75 lines (0.92; the other six float
+/// 4-50 mm off the surfaces, wrong disparities the vision issue is about); the limit, 0.88,
+/// lets three more go wrong and fails if disparities or the triangulation do.
 #[test]
 fn stereo_json_lines_lie_on_the_rendered_surfaces() {
     let dir = rendered();
@@ -88,7 +89,7 @@ fn stereo_json_lines_lie_on_the_rendered_surfaces() {
     let fraction = on_surface as f64 / judged.max(1) as f64;
     eprintln!("{on_surface} of {judged} 3D lines on the rendered surfaces ({fraction:.3})");
     assert!(judged >= 30, "only {judged} lines to judge");
-    assert!(fraction >= 0.9, "{on_surface} of {judged} 3D lines lie on the rendered surfaces");
+    assert!(fraction >= 0.88, "{on_surface} of {judged} 3D lines lie on the rendered surfaces");
 }
 
 #[test]
@@ -127,8 +128,8 @@ fn locate_reports_poses_grasps_and_misses() {
     let xyz = |v: &serde_json::Value| -> [f64; 3] { std::array::from_fn(|k| v[k].as_f64().unwrap()) };
     // The 3D lines each correct report rests on lie along the true object's feature edges:
     // their midpoints' distance from the true wireframe (scene.json's pose; measured on this
-    // scene: median 0.3 mm, worst 1.6 mm) is within 1 mm at the median and 3 mm (the matcher's
-    // support distance) at worst.
+    // scene over 54 lines: median 0.10 mm, worst 1.12 mm) is within 0.3 mm at the median and
+    // 2 mm at worst (the matcher accepts lines within 3 mm of its own pose).
     let render = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli_locate_render");
     let r = marvin(&["render", "worlds/widgets.toml", "--seed", "1", "--out", path(&render)]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
@@ -157,8 +158,8 @@ fn locate_reports_poses_grasps_and_misses() {
     distances.sort_by(f64::total_cmp);
     eprintln!("support lines from the true wireframe, mm: {distances:.2?}");
     assert!(distances.len() >= 10, "only {} support lines", distances.len());
-    assert!(distances[distances.len() / 2] <= 1.0, "median {:.2} mm", distances[distances.len() / 2]);
-    assert!(distances[distances.len() - 1] <= 3.0, "worst {:.2} mm", distances[distances.len() - 1]);
+    assert!(distances[distances.len() / 2] <= 0.3, "median {:.2} mm", distances[distances.len() / 2]);
+    assert!(distances[distances.len() - 1] <= 2.0, "worst {:.2} mm", distances[distances.len() - 1]);
     assert!(doc["missed"].is_array());
     assert!(dir.join("located.png").exists());
     let bad = marvin(&["locate", "worlds/widgets.toml", "--models", "teapot"]);
@@ -166,7 +167,10 @@ fn locate_reports_poses_grasps_and_misses() {
 }
 
 /// Seed 6 hides most of its L-bracket behind other parts; `locate` reports it missed, with the
-/// fraction of its edges in view and the evidence its true pose finds.
+/// fraction of its edges in view and the evidence its true pose finds. Measured: 20% of its
+/// edges visible; at the truth 0.152 of its wireframe in 3D lines along 5 model lines (enough for
+/// the matcher's 0.15 on 3), but only 0.28 of it on image edgels, short of the 0.5 a report
+/// needs: the evidence says why it was missed.
 #[test]
 fn locate_says_how_much_of_a_missed_object_was_visible() {
     let out = marvin(&["locate", "worlds/widgets.toml", "--seed", "6", "--json"]);
@@ -174,12 +178,13 @@ fn locate_says_how_much_of_a_missed_object_was_visible() {
     let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let missed = doc["missed"].as_array().unwrap();
     let bracket = missed.iter().find(|m| m["model"] == "l_bracket").unwrap_or_else(|| panic!("{doc}"));
-    let visible = bracket["visible_fraction"].as_f64().unwrap();
-    assert!((0.1..0.3).contains(&visible), "{visible}");
-    for key in ["support_fraction_at_truth", "image_support_at_truth"] {
-        assert!((0.0..=1.0).contains(&bracket[key].as_f64().unwrap()), "{key}: {bracket}");
-    }
-    assert!(bracket["supported_lines_at_truth"].is_u64());
+    let figure = |key: &str| bracket[key].as_f64().unwrap_or_else(|| panic!("{key}: {bracket}"));
+    assert!((0.15..0.25).contains(&figure("visible_fraction")), "{bracket}");
+    let bars = vision::matcher::MatchParams::default();
+    assert!(figure("support_fraction_at_truth") >= bars.min_support_fraction, "{bracket}");
+    assert!(bracket["supported_lines_at_truth"].as_u64().unwrap() >= bars.min_support_lines as u64, "{bracket}");
+    assert!(figure("image_support_at_truth") < bars.min_image_support, "{bracket}");
+    assert!(figure("image_support_at_truth") > 0.15, "the bracket's visible edges are on edgels: {bracket}");
 }
 
 fn distance_to_segment(p: &nalgebra::Point3<f64>, a: &nalgebra::Point3<f64>, b: &nalgebra::Point3<f64>) -> f64 {

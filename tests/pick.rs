@@ -31,8 +31,8 @@ fn the_simulated_arm_stands_where_the_planner_computes_it() {
     }
 }
 
-/// How far the closed jaws may be from the grasp's width, mm.
-const JAW_SINK_MM: f64 = 1.0;
+/// How far the closed jaws may be from the grasp's width, mm (measured at most 0.35).
+const JAW_SINK_MM: f64 = 0.6;
 
 #[test]
 fn single_objects_are_picked_and_placed() {
@@ -40,13 +40,14 @@ fn single_objects_are_picked_and_placed() {
     let mut outcomes = Vec::new();
     for model in pickable_models(&scn) {
         let one = single_object_scenario(&scn, &model);
-        for seed in 1..=3 {
+        for seed in 10001..=10003 {
             let scene = Scene::settle(&one, seed);
             let out = PickCell::new(&one, &work, &scene).unwrap().pick(1, seed).unwrap();
             if out.placed {
-                // Held between the fingers, closed to the width the grasp says (rapier's soft
-                // contacts let each 20 N pad sink 0.1-0.2 mm into a part: measured within
-                // JAW_SINK_MM of the grasp's width).
+                // Held between the fingers, closed to the width the grasp says: rapier's soft
+                // contacts let each 20 N pad sink a little into a part (measured over these 21
+                // picks: 0.07-0.35 mm under the width; the grasps' widths differ by 5 mm or more,
+                // so closing on another pair of faces fails).
                 let (closed, width) = (out.closed_opening_mm.unwrap(), out.grasp_width_mm.unwrap());
                 assert!(
                     out.held && (width - closed).abs() <= JAW_SINK_MM,

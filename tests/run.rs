@@ -1,11 +1,12 @@
-//! The whole loop, as `marvin run` runs it: a robot server in-process, one hand-eye calibration,
-//! then for two seeded scenes the cycles of capture, front end, matcher, choice and pick over
+//! The whole loop, as `marvin run` runs it: for two seeded scenes a robot server in-process, a
+//! hand-eye calibration on it, then the cycles of capture, front end, matcher, choice and pick over
 //! the socket until nothing more is located. The table must end clear (checked against the
 //! simulation's truth, read after the run).
 //!
-//! Not every scene ends clear (`marvin eval run worlds/widgets.toml --scenes 20`: 95% of objects
-//! cleared; seed 2 leaves a wedge on the table). Seeds 5 and 6 did end clear when
-//! this test was written: the test guards that the whole loop still does what it did.
+//! The scenes are the first two of the reporting range (seeds 10001 and 10002, never used to
+//! choose anything), not seeds picked because they cleared. Not every scene ends clear (`marvin
+//! eval run worlds/widgets.toml --scenes 20 --seed 10001`, one calibration shared: 92% of objects
+//! cleared; with seed 10001's calibration, 1.2 mm / 0.16 deg off, seed 10002 leaves two parts).
 
 use marvin::calibrate::{CalibrateConfig, calibrate};
 use marvin::client::Client;
@@ -26,13 +27,12 @@ fn server(seed: u64) -> (Server, Client) {
 #[test]
 fn the_table_is_cleared_from_what_the_cameras_see() {
     let library = mesh::Library::load_default().unwrap();
-    let (s, mut c) = server(1);
-    let calibration =
-        calibrate(&mut c, &library, &CalibrateConfig::default(), &mut |_, _| Ok(()), &mut |_| {}).unwrap();
-    let cam_from_base = calibration.solution.cam_from_base;
-    s.stop();
-    for seed in [5, 6] {
+    for seed in [10001, 10002] {
         let (s, mut c) = server(seed);
+        // As `marvin run` does: calibrate on the cell first, then pick.
+        let config = CalibrateConfig { seed, ..CalibrateConfig::default() };
+        let calibration = calibrate(&mut c, &library, &config, &mut |_, _| Ok(()), &mut |_| {}).unwrap();
+        let cam_from_base = calibration.solution.cam_from_base;
         c.set_hand_eye(WirePose::new(None, &cam_from_base)).unwrap();
         let on_table = c.truth().unwrap().objects.len();
         let report =
