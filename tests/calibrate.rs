@@ -2,10 +2,14 @@
 //! handed in, carried to 20 poses, seen, located and solved; the result against the simulation's
 //! truth (read here, after the solve, as evaluation does).
 //!
-//! The limits are regression limits near what the calibration does today (seeds 1-10:
-//! 0.46-1.42 mm, 0.02-0.20 deg; the limits are about 1.5 times the worst), not the hand-eye
-//! issue's targets (0.5 mm, 0.05 deg median), which it does not meet yet: the flag creeps ~1.5 mm
-//! in the jaws during a calibration, and vision reads it ~2 mm off along its face normal.
+//! The seeds are the first two of the reporting range (10001, 10002: never used to choose
+//! anything). The limits are regression limits near what the calibration does today (`marvin
+//! eval calibrate worlds/widgets.toml --trials 10 --seed 10001`: 1.03 mm / 0.14 deg median, p90
+//! 1.26 mm / 0.21 deg, the worst 1.28 mm / 0.21 deg, at least 15 of 20 poses used; these two
+//! seeds 1.24 mm / 0.164 deg and 0.89 mm / 0.122 deg; the limits, 1.9 mm / 0.32 deg, are 1.5
+//! times the worst of the ten), not the hand-eye issue's targets (0.5 mm,
+//! 0.05 deg median), which it does not meet yet: the flag creeps ~1.3 mm in the jaws during a
+//! calibration, and vision reads it ~2 mm off along its face normal.
 
 use marvin::calibrate::{CalibrateConfig, calibrate};
 use marvin::client::Client;
@@ -32,10 +36,10 @@ fn calibrate_seed(seed: u64) -> (f64, f64, usize) {
 
 #[test]
 fn calibration_finds_the_camera_within_regression_limits() {
-    for seed in [1, 6] {
+    for seed in [10001, 10002] {
         let (mm, deg, used) = calibrate_seed(seed);
         eprintln!("seed {seed}: {mm:.3} mm, {deg:.4} deg, {used} sightings used");
         assert!(used >= 12, "seed {seed}: only {used} sightings used");
-        assert!(mm < 2.2 && deg < 0.3, "seed {seed}: {mm:.3} mm, {deg:.4} deg from the truth");
+        assert!(mm < 1.9 && deg < 0.32, "seed {seed}: {mm:.3} mm, {deg:.4} deg from the truth");
     }
 }

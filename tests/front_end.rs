@@ -31,15 +31,19 @@ fn disparities_of_an_uncluttered_scene_are_right() {
     assert_eq!(stats.wrong, 0, "wrong matches in a scene without ambiguity");
 }
 
-/// The front-end issue's acceptance figures, over 5 seeded clutter scenes of the default world
-/// (`marvin eval vision worlds/widgets.toml --scenes 20` reports the same over 20).
+/// The front-end issue's acceptance figures, over 20 seeded clutter scenes of the default world
+/// from the reporting range (seeds 10001-10020, never used to choose a parameter; what `marvin
+/// eval vision worlds/widgets.toml --scenes 20 --seed 10001` reports). Measured: 0.956 within
+/// 0.5 px, 0.011 wrong, ends 0.29 / 1.73 mm, coverage 0.700 -- at the coverage target's edge, so
+/// a change that loses any coverage fails here. (The first 5 of these alone give 0.938 and
+/// 0.675: 5 scenes are too few to judge these figures.)
 #[test]
 fn the_default_world_meets_the_front_end_targets() {
     let scn = Scenario::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("worlds/widgets.toml")).unwrap();
     let calib = sim::rig::calibration(&scn.world.cameras);
     let light = Light::from(&scn.world.light);
     let (mut disparities, mut lines) = (DisparityStats::default(), marvin::eval::LineStats::default());
-    for seed in 1..=5 {
+    for seed in 10001..=10020 {
         let scene = Scene::settle(&scn, seed);
         let rs = RenderScene::new(scene.world_meshes(&scn.library), &light);
         let (l, r) = render_stereo(&rs, &calib, scn.world.render.noise_sigma, seed);
