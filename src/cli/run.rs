@@ -418,3 +418,15 @@ pub fn eval(world: &Path, scenes: u64, seed: u64, json: bool) -> anyhow::Result<
     });
     if json { emit(&report.to_string()) } else { emit(&serde_json::to_string_pretty(&report)?) }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::RunTruth;
+
+    #[test]
+    fn a_pick_is_a_first_attempt_only_at_an_object_not_tried_before() {
+        let t = RunTruth { targets: vec![Some(3), None, Some(3), Some(5), None], ..RunTruth::default() };
+        assert_eq!(t.first_attempts(), [true, false, false, true, false]);
+        assert_eq!(t.wrong_picks(), 2);
+    }
+}
