@@ -18,6 +18,9 @@ pub const APPROACH_M: f64 = 0.08;
 pub const LIFT_M: f64 = 0.10;
 /// Extra jaw opening beyond the object's width while approaching, metres.
 pub const OPEN_MARGIN_M: f64 = 0.016;
+/// The extra opening tried when no plan leaves the wide one room: a part packed against its
+/// neighbours can often be reached with 3 mm a side where 8 mm would touch them.
+pub const TIGHT_OPEN_MARGIN_M: f64 = 0.006;
 /// The object is let go this far above where it would rest on the bin floor, metres.
 pub const DROP_M: f64 = 0.01;
 /// Clearance of free moves, and of the short straight moves near the object, metres.
@@ -111,8 +114,26 @@ pub const SHALLOWER_M: [f64; 3] = [0.0, 0.006, 0.012];
 pub const TILTS_DEG: [f64; 5] = [0.0, 20.0, -20.0, 40.0, -40.0];
 
 /// Plans the whole pick: tries the grasps in order, each at the depths of [`SHALLOWER_M`], then
-/// all of them again at each tilt of [`TILTS_DEG`]; returns the first that works end to end.
+/// all of them again at each tilt of [`TILTS_DEG`], with the jaws opened by [`OPEN_MARGIN_M`]
+/// beyond the part; if none works, all of that again with [`TIGHT_OPEN_MARGIN_M`]. Returns the
+/// first that works end to end; the reasons given are the wide opening's.
 pub fn plan_pick(arm: &Arm, ik: &Ik, req: &PickRequest) -> Result<PickPlan, PickError> {
+    let mut first_reasons = None;
+    for margin in [OPEN_MARGIN_M, TIGHT_OPEN_MARGIN_M] {
+        match plan_pick_with_margin(arm, ik, req, margin) {
+            Ok(plan) => return Ok(plan),
+            Err(reasons) => {
+                first_reasons.get_or_insert(reasons);
+            }
+        }
+    }
+    let mut reasons = first_reasons.unwrap_or_default();
+    reasons.push(format!("nor tilted by {:?} deg about the jaw axis", &TILTS_DEG[1..]));
+    reasons.push(format!("nor with the jaws {:.0} mm wider than the part", TIGHT_OPEN_MARGIN_M * 1e3));
+    Err(PickError::NoGrasp { reasons })
+}
+
+fn plan_pick_with_margin(arm: &Arm, ik: &Ik, req: &PickRequest, margin: f64) -> Result<PickPlan, Vec<String>> {
     let mut reasons = Vec::new();
     for tilt in TILTS_DEG {
         let turn = Isometry3::rotation(Vector3::y() * tilt.to_radians());
@@ -123,7 +144,7 @@ pub fn plan_pick(arm: &Arm, ik: &Ik, req: &PickRequest) -> Result<PickPlan, Pick
                 let approach = tilted.rotation * Vector3::z();
                 let grasp =
                     GraspCandidate { base_from_gripper: shifted(&tilted, -shallower * approach), width: written.width };
-                match plan_with_grasp(arm, ik, req, &grasp) {
+                match plan_with_grasp(arm, ik, req, &grasp, margin) {
                     Ok((steps, base_from_release)) => {
                         return Ok(PickPlan { grasp_index: i, grasp, base_from_release, steps });
                     }
@@ -137,8 +158,7 @@ pub fn plan_pick(arm: &Arm, ik: &Ik, req: &PickRequest) -> Result<PickPlan, Pick
             }
         }
     }
-    reasons.push(format!("nor tilted by {:?} deg about the jaw axis", &TILTS_DEG[1..]));
-    Err(PickError::NoGrasp { reasons })
+    Err(reasons)
 }
 
 fn limits(arm: &Arm) -> Limits {
@@ -155,8 +175,9 @@ fn plan_with_grasp(
     ik: &Ik,
     req: &PickRequest,
     grasp: &GraspCandidate,
+    margin: f64,
 ) -> Result<(Vec<Step>, Isometry3<f64>), String> {
-    let open = (grasp.width + OPEN_MARGIN_M).min(arm.max_opening());
+    let open = (grasp.width + margin).min(arm.max_opening());
     if grasp.width > arm.max_opening() {
         return Err(format!(
             "the object is {:.0} mm wide; the jaws open {:.0} mm",
@@ -192,7 +213,8 @@ fn plan_with_grasp(
     // The held object starts on the table, touching it; the lift checks only the arm.
     let lift = straight(&near_world, &q_at, &q_lift, 0.0, None, "lifting")?;
 
-    let place = place_configuration(arm, ik, req, grasp, &q_lift, (&carry_world, &near_world), &held)?;
+    let holding = Holding { grasp, open, held: &held };
+    let place = place_configuration(arm, ik, req, &holding, &q_lift, (&carry_world, &near_world))?;
     let (q_above_bin, release) = (place.q_above, place.pose);
     let (lower, retreat) = (vec![place.q_above, place.q_at], vec![place.q_at, place.q_above]);
 
@@ -234,6 +256,15 @@ struct Release {
     q_at: Joints,
 }
 
+/// How the part is held: the grasp, the jaws' opening before and after, the part as the arm
+/// carries it.
+#[derive(Clone, Copy)]
+struct Holding<'a> {
+    grasp: &'a GraspCandidate,
+    open: f64,
+    held: &'a Attached,
+}
+
 /// The first release that works, trying the lowest heights first, then spots over the bin
 /// (centre, then the middles of its quarters), then the grasp's orientation turned about the
 /// vertical a quarter turn at a time.
@@ -241,18 +272,17 @@ fn place_configuration(
     arm: &Arm,
     ik: &Ik,
     req: &PickRequest,
-    grasp: &GraspCandidate,
+    holding: &Holding,
     q_lift: &Joints,
     worlds: (&CollisionWorld, &CollisionWorld),
-    held: &Attached,
 ) -> Result<Release, String> {
     let (carry_world, near_world) = worlds;
+    let Holding { grasp, open, held } = *holding;
     let floor = req.place.base_from_floor_centre;
     let [sx, sy] = req.place.size_xy;
     let spots = [(0.0, 0.0), (-0.25, -0.25), (0.25, -0.25), (-0.25, 0.25), (0.25, 0.25)].map(|(u, v)| (u * sx, v * sy));
     // Keep the object's height under the gripper: it then comes to rest on the floor.
     let floor_height = grasp.base_from_gripper.translation.z + DROP_M;
-    let open = (grasp.width + OPEN_MARGIN_M).min(arm.max_opening());
     let mut why = String::from("no release pose over the bin");
     for raise in RELEASE_RAISES_M {
         for (dx, dy) in spots {
