@@ -134,6 +134,10 @@ enum Command {
         /// red), and the missed objects' true wireframes dashed in white.
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Record the scene for rerun in this file: both cameras and their images, the edgels,
+        /// 2D and 3D lines, the located parts, the table and bins.
+        #[arg(long)]
+        rerun: Option<PathBuf>,
     },
     /// Settle a scene and pick one object with the simulated arm, planned from the object's true
     /// pose, into the first bin; reports `placed` or what went wrong (`unplanned`, `miss`,
@@ -207,6 +211,10 @@ enum Command {
         out: PathBuf,
         #[arg(long)]
         json: bool,
+        /// Record the calibration for rerun in this file: the sightings, the solved camera (and
+        /// the true one with a server started here), the table and bins.
+        #[arg(long)]
+        rerun: Option<PathBuf>,
     },
     /// Run seeded scenes through the pipeline and compare with ground truth.
     Eval {
@@ -237,15 +245,17 @@ fn main() -> std::process::ExitCode {
             stereo::geometry(calib.as_deref(), rectified, disparity)
                 .and_then(|g| stereo::run(&left, &right, &g, slices as usize, json, out.as_deref()))
         }
-        Command::Locate { world, seed, models, json, out } => locate::run(&world, seed, models, json, out.as_deref()),
+        Command::Locate { world, seed, models, json, out, rerun } => {
+            locate::run(&world, seed, models, json, out.as_deref(), rerun.as_deref())
+        }
         Command::Pick { world, object, all: _, model, seed, json } => {
             pick::run(&world, object, model.as_deref(), seed, json)
         }
         Command::Serve { world, seed, listen, token_file, hand_eye, truth, idle_timeout_s } => {
             serve::run(serve::ServeArgs { world, seed, listen, token_file, hand_eye, truth, idle_timeout_s })
         }
-        Command::Calibrate { world, poses, seed, connect, out, json } => {
-            calibrate::run(calibrate::CalibrateArgs { world, poses: poses as usize, seed, connect, out, json })
+        Command::Calibrate { world, poses, seed, connect, out, json, rerun } => {
+            calibrate::run(calibrate::CalibrateArgs { world, poses: poses as usize, seed, connect, out, json, rerun })
         }
         Command::Eval { what } => eval::run(what),
         Command::Bench { what } => bench::run(what),

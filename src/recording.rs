@@ -18,8 +18,10 @@
 //! - `stages/<stage>`: each cycle's stage times, ms; `joints/<joint>`: the arm's joints at the
 //!   end of each cycle; `log`: a text log of events.
 //!
-//! A default blueprint lays out the 3D view, the two camera views and the log. Built without the
-//! `rerun` feature, asking for a recording is an error that says so.
+//! A default blueprint lays out the 3D view, the two camera views and the log. `marvin locate
+//! --rerun` records its rendered scene with the same entities ([`Recording::stereo`] after
+//! [`Recording::frame`]), `marvin calibrate --rerun` its calibration. Built without the `rerun`
+//! feature, asking for a recording is an error that says so.
 
 use crate::calibrate::Calibration;
 use crate::perception::Pair;
@@ -204,11 +206,23 @@ mod with_rerun {
         /// 3D lines in the cell.
         pub fn capture(&mut self, capture: &CaptureReply, pair: &Pair, fe: &FrontEnd) -> anyhow::Result<()> {
             use base64::Engine;
+            let decode =
+                |png: &str| base64::engine::general_purpose::STANDARD.decode(png).context("the capture's image");
+            let pngs = [decode(&capture.left_png_b64)?, decode(&capture.right_png_b64)?];
+            self.stereo(pngs, pair, fe)
+        }
+
+        /// The cell's frame seen from the left camera, for recordings made without a calibration
+        /// (`marvin locate` renders its scene: the robot's base frame from the world file).
+        pub fn frame(&mut self, base_from_cam: &Isometry3<f64>) {
+            self.base_from_cam = Some(*base_from_cam);
+        }
+
+        /// A stereo pair (its images as PNG files' bytes) and what the front end made of it.
+        pub fn stereo(&mut self, pngs: [Vec<u8>; 2], pair: &Pair, fe: &FrontEnd) -> anyhow::Result<()> {
             let Some(base_from_cam) = self.base_from_cam else { return Ok(()) };
-            for (side, cam, png) in [
-                ("left", &pair.calib.left, &capture.left_png_b64),
-                ("right", &pair.calib.right, &capture.right_png_b64),
-            ] {
+            let [left_png, right_png] = pngs;
+            for (side, cam, png) in [("left", &pair.calib.left, left_png), ("right", &pair.calib.right, right_png)] {
                 let path = format!("cell/camera/{side}");
                 self.rec.log(path.as_str(), &transform(&(base_from_cam * cam.world_from_cam)))?;
                 let pinhole = rerun::Pinhole::from_focal_length_and_resolution(
@@ -217,8 +231,7 @@ mod with_rerun {
                 )
                 .with_principal_point([cam.cx as f32, cam.cy as f32]);
                 self.rec.log(format!("{path}/image").as_str(), &pinhole)?;
-                let bytes = base64::engine::general_purpose::STANDARD.decode(png).context("the capture's image")?;
-                self.rec.log(format!("{path}/image").as_str(), &rerun::EncodedImage::from_file_contents(bytes))?;
+                self.rec.log(format!("{path}/image").as_str(), &rerun::EncodedImage::from_file_contents(png))?;
             }
             let edgels: Vec<[f32; 2]> = fe.left.edgels.iter().map(|e| [e.x, e.y]).collect();
             self.rec.log(
@@ -384,6 +397,10 @@ mod without_rerun {
             Ok(())
         }
         pub fn capture(&mut self, _c: &CaptureReply, _p: &Pair, _fe: &FrontEnd) -> anyhow::Result<()> {
+            Ok(())
+        }
+        pub fn frame(&mut self, _base_from_cam: &Isometry3<f64>) {}
+        pub fn stereo(&mut self, _pngs: [Vec<u8>; 2], _p: &Pair, _fe: &FrontEnd) -> anyhow::Result<()> {
             Ok(())
         }
         pub fn located(&mut self, _l: &[Located], _lib: &mesh::Library) -> anyhow::Result<()> {

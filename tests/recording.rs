@@ -1,7 +1,8 @@
 //! A run recorded for rerun: `marvin run --rerun FILE.rrd` writes a file that rerun's own reader
 //! decodes to the end, holding the entities a person looks for (the cameras and their images,
 //! the edgels and 2D lines, the 3D lines, the located parts, the calibration, the bins, the
-//! objects, stage times, the log).
+//! objects, stage times, the log). `marvin locate --rerun` and `marvin calibrate --rerun` record
+//! what they have.
 #![cfg(feature = "rerun")]
 
 use re_log_encoding::DecoderApp;
@@ -9,13 +10,15 @@ use rerun::log::{Chunk, LogMsg};
 use std::collections::BTreeSet;
 use std::process::Command;
 
-#[test]
-fn a_run_is_recorded_with_its_entities() {
-    let dir = std::env::temp_dir().join(format!("marvin-rrd-{}", std::process::id()));
-    let path = dir.join("run.rrd");
-    let world = concat!(env!("CARGO_MANIFEST_DIR"), "/worlds/widgets.toml");
+/// Runs `marvin` with `args` (the recording's path last) and returns the entities the
+/// recording it writes holds, decoded with rerun's own reader to the end.
+fn recorded_entities(name: &str, args: &[&str]) -> BTreeSet<String> {
+    let dir = std::env::temp_dir().join(format!("marvin-rrd-{}-{name}", std::process::id()));
+    let path = dir.join(format!("{name}.rrd"));
     let out = Command::new(env!("CARGO_BIN_EXE_marvin"))
-        .args(["run", world, "--max-cycles", "2", "--rerun", path.to_str().unwrap()])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args(args)
+        .arg(&path)
         .output()
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
@@ -29,29 +32,76 @@ fn a_run_is_recorded_with_its_entities() {
             entities.insert(chunk.entity_path().to_string().trim_start_matches('/').to_string());
         }
     }
-    assert!(messages > 10, "only {messages} messages");
-    for wanted in [
-        "cell/camera/left",
-        "cell/camera/left/image",
-        "cell/camera/left/image/edgels",
-        "cell/camera/left/image/lines2d",
-        "cell/camera/right/image",
-        "cell/lines3d",
-        "cell/located/0",
-        "cell/located/0/grasp",
-        "cell/calibration/sightings/seen",
-        "cell/calibration/solved_camera",
-        "cell/calibration/true_camera",
-        "cell/bins",
-        "cell/path",
-        "cell/arm/upper_arm",
-        "cell/fixed/table",
-        "cell/truth/objects/1",
-        "stages/match",
-        "joints/shoulder",
-        "log",
-    ] {
-        assert!(entities.contains(wanted), "no `{wanted}` in the recording; it holds {entities:?}");
-    }
+    assert!(messages > 5, "only {messages} messages");
     let _ = std::fs::remove_dir_all(&dir);
+    entities
+}
+
+fn assert_holds(entities: &BTreeSet<String>, wanted: &[&str]) {
+    for w in wanted {
+        assert!(entities.contains(*w), "no `{w}` in the recording; it holds {entities:?}");
+    }
+}
+
+#[test]
+fn a_run_is_recorded_with_its_entities() {
+    let entities = recorded_entities("run", &["run", "worlds/widgets.toml", "--max-cycles", "2", "--rerun"]);
+    assert_holds(
+        &entities,
+        &[
+            "cell/camera/left",
+            "cell/camera/left/image",
+            "cell/camera/left/image/edgels",
+            "cell/camera/left/image/lines2d",
+            "cell/camera/right/image",
+            "cell/lines3d",
+            "cell/located/0",
+            "cell/located/0/grasp",
+            "cell/calibration/sightings/seen",
+            "cell/calibration/solved_camera",
+            "cell/calibration/true_camera",
+            "cell/bins",
+            "cell/path",
+            "cell/arm/upper_arm",
+            "cell/fixed/table",
+            "cell/truth/objects/1",
+            "stages/match",
+            "joints/shoulder",
+            "log",
+        ],
+    );
+}
+
+#[test]
+fn locate_and_calibrate_record_what_they_have() {
+    let located = recorded_entities("locate", &["locate", "worlds/widgets.toml", "--seed", "2", "--rerun"]);
+    assert_holds(
+        &located,
+        &[
+            "cell/camera/left",
+            "cell/camera/left/image",
+            "cell/camera/left/image/edgels",
+            "cell/camera/right/image",
+            "cell/lines3d",
+            "cell/located/0",
+            "cell/located/0/grasp",
+            "cell/fixed/table",
+            "log",
+        ],
+    );
+    let calibrated = recorded_entities(
+        "calibrate",
+        &["calibrate", "worlds/widgets.toml", "--poses", "8", "--out", "target/tmp/rrd_hand_eye.json", "--rerun"],
+    );
+    assert_holds(
+        &calibrated,
+        &[
+            "cell/calibration/sightings/seen",
+            "cell/calibration/sightings/robot",
+            "cell/calibration/solved_camera",
+            "cell/calibration/true_camera",
+            "cell/fixed/table",
+            "log",
+        ],
+    );
 }

@@ -21,6 +21,8 @@ pub struct CalibrateArgs {
     pub connect: Option<String>,
     pub out: PathBuf,
     pub json: bool,
+    /// Where to record the calibration for rerun, if anywhere.
+    pub rerun: Option<PathBuf>,
 }
 
 /// What evaluation learns from the simulation (an in-process server only), after the fact.
@@ -136,6 +138,12 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
     cell.stop()?;
     let file = HandEyeFile::from_solution(&calibration.solution);
     file.save(&args.out)?;
+    if let Some(path) = &args.rerun {
+        record(path, &scn, &calibration, truth.cam_from_base.as_ref())?;
+        if !args.json {
+            eprintln!("recorded the calibration in {} (open it with `rerun {}`)", path.display(), path.display());
+        }
+    }
     let s = &calibration.solution;
     let error = error_of(&calibration, &truth);
     if args.json {
@@ -188,6 +196,24 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
         emit(&format!("the flag moved {creep:.3} mm in the jaws between the first and last sighting"))?;
     }
     emit(&format!("wrote {}", args.out.display()))
+}
+
+/// The calibration recorded for rerun: its sightings, the solved camera (and the true one,
+/// known locally), the cell's fixed parts, a log line per pose.
+fn record(
+    path: &Path,
+    scn: &sim::Scenario,
+    c: &Calibration,
+    true_cam_from_base: Option<&Isometry3<f64>>,
+) -> anyhow::Result<()> {
+    let mut r = marvin::recording::Recording::start(&marvin::recording::Sink::File(path.to_path_buf()))?;
+    r.at(0, 0.0);
+    for (k, p) in c.poses.iter().enumerate() {
+        r.text(&format!("pose {}/{}: {}", k + 1, c.poses.len(), p.note))?;
+    }
+    r.calibration(c, true_cam_from_base)?;
+    r.cell_layout(scn)?;
+    r.finish()
 }
 
 /// `marvin eval calibrate`: seeded calibrations, each on its own scene and poses.

@@ -203,6 +203,7 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
 pub struct Pipeline {
     pub scene: Scene,
     pub left: sim::render::Frame,
+    pub right: sim::render::Frame,
     pub front_end: vision::front_end::FrontEnd,
     /// Whether the scene came to rest (a warning was printed if not).
     pub settled: bool,
@@ -214,9 +215,9 @@ pub fn run_pipeline(scn: &Scenario, seed: u64) -> Pipeline {
     let rs = RenderScene::new(scene.world_meshes(&scn.library), &Light::from(&scn.world.light));
     let (l, r) = render_stereo(&rs, &calib, scn.world.render.noise_sigma, seed);
     let left = vision::GreyImage::new(l.width, l.height, l.image.clone()).expect("a rendered frame is whole");
-    let right = vision::GreyImage::new(r.width, r.height, r.image).expect("a rendered frame is whole");
+    let right = vision::GreyImage::new(r.width, r.height, r.image.clone()).expect("a rendered frame is whole");
     let front_end = vision::front_end::slices::run_sliced(&left, &right, &calib, &vision::CannyParams::default(), 8);
-    Pipeline { scene, left: l, front_end, settled }
+    Pipeline { scene, left: l, right: r, front_end, settled }
 }
 
 /// The library's models as the matcher sees them (the calibration flag is not sought).

@@ -17,6 +17,7 @@ pub fn run(
     models: Option<Vec<String>>,
     json: bool,
     out: Option<&Path>,
+    rerun: Option<&Path>,
 ) -> anyhow::Result<()> {
     let scn = Scenario::load(world)?;
     if let Some(names) = &models {
@@ -143,7 +144,47 @@ pub fn run(
             .save(&path)
             .with_context(|| format!("writing {}", path.display()))?;
     }
+    if let Some(path) = rerun {
+        record(path, &scn, &p, &calib, &located)?;
+        if !json {
+            eprintln!("recorded the scene in {} (open it with `rerun {}`)", path.display(), path.display());
+        }
+    }
     Ok(())
+}
+
+/// The scene recorded for rerun, in the robot's base frame as a run's recording is (the world's
+/// when the world has no robot): both cameras with their images, the edgels, 2D and 3D lines,
+/// the located parts, the table and bins.
+fn record(
+    path: &Path,
+    scn: &Scenario,
+    p: &super::eval::Pipeline,
+    calib: &mesh::StereoCalibration,
+    located: &[vision::matcher::Located],
+) -> anyhow::Result<()> {
+    let png = |f: &sim::render::Frame| -> anyhow::Result<Vec<u8>> {
+        let img = image::GrayImage::from_raw(f.width as u32, f.height as u32, f.image.clone()).context("image size")?;
+        let mut bytes = std::io::Cursor::new(Vec::new());
+        img.write_to(&mut bytes, image::ImageFormat::Png)?;
+        Ok(bytes.into_inner())
+    };
+    let grey =
+        |f: &sim::render::Frame| vision::GreyImage::new(f.width, f.height, f.image.clone()).context("image size");
+    // The pair as the vision pipeline holds it: the right camera in the left's frame.
+    let mut rig = calib.clone();
+    rig.left.world_from_cam = Isometry3::identity();
+    rig.right.world_from_cam = calib.left.cam_from_world() * calib.right.world_from_cam;
+    let pair = marvin::perception::Pair { left: grey(&p.left)?, right: grey(&p.right)?, calib: rig };
+    let base_from_world = scn.world.robot.as_ref().map_or(Isometry3::identity(), |r| r.world_from_base().inverse());
+    let mut r = marvin::recording::Recording::start(&marvin::recording::Sink::File(path.to_path_buf()))?;
+    r.at(0, 0.0);
+    r.frame(&(base_from_world * calib.left.world_from_cam));
+    r.stereo([png(&p.left)?, png(&p.right)?], &pair, &p.front_end)?;
+    r.located(located, &scn.library)?;
+    r.cell_layout(scn)?;
+    r.text(&format!("seed {}: {} parts located", p.scene.seed, located.len()))?;
+    r.finish()
 }
 
 /// The left image with each located model's wireframe drawn where the matcher put it (a colour
