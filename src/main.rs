@@ -159,6 +159,10 @@ enum Command {
         seed: Option<u64>,
         #[arg(long)]
         json: bool,
+        /// Record the cell for rerun in this file: the table and bins, the objects and the arm
+        /// before and after the picks, a log line per pick.
+        #[arg(long)]
+        rerun: Option<PathBuf>,
     },
     /// Host the simulated cell (world, arm, cameras) and the robot server behind a TCP socket
     /// speaking protocol v1 (docs/PROTOCOL.md), until Ctrl-C or an authorised `shutdown`.
@@ -248,8 +252,8 @@ fn main() -> std::process::ExitCode {
         Command::Locate { world, seed, models, json, out, rerun } => {
             locate::run(&world, seed, models, json, out.as_deref(), rerun.as_deref())
         }
-        Command::Pick { world, object, all: _, model, seed, json } => {
-            pick::run(&world, object, model.as_deref(), seed, json)
+        Command::Pick { world, object, all: _, model, seed, json, rerun } => {
+            pick::run(&world, object, model.as_deref(), seed, json, rerun.as_deref())
         }
         Command::Serve { world, seed, listen, token_file, hand_eye, truth, idle_timeout_s } => {
             serve::run(serve::ServeArgs { world, seed, listen, token_file, hand_eye, truth, idle_timeout_s })

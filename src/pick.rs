@@ -374,6 +374,20 @@ impl<'a> PickCell<'a> {
         self.body(id).is_ok_and(|(_, b)| self.inside_bin(b))
     }
 
+    /// Every object where the simulation has it now, and whether it lies in a bin (evaluation's
+    /// view).
+    pub fn truth_objects(&self) -> Vec<crate::protocol::TruthObject> {
+        self.objects
+            .iter()
+            .map(|(id, model, body)| crate::protocol::TruthObject {
+                id: *id,
+                model: model.clone(),
+                world_from_model: crate::protocol::WirePose::new(None, &self.cell.pose(*body)),
+                in_bin: self.inside_any_bin(*body),
+            })
+            .collect()
+    }
+
     /// Whether `body` rests in any of the cell's bins.
     pub fn inside_any_bin(&self, body: RigidBodyHandle) -> bool {
         (0..self.scn.world.bins.len()).any(|k| self.inside_bin_k(body, k))
@@ -459,9 +473,14 @@ pub const CLEARING_PASSES: usize = 3;
 /// planned from the objects' poses at that moment; objects that fail are tried again in later
 /// passes unless they came to rest inside the bin anyway. Every attempt is kept, object by object.
 pub fn clear_scene(scn: &Scenario, work: &Workcell, scene: &Scene) -> Result<Vec<ObjectPicks>> {
-    let mut cell = PickCell::new(scn, work, scene)?;
+    clear_cell(&mut PickCell::new(scn, work, scene)?, scene.seed)
+}
+
+/// [`clear_scene`] on a cell already made (whose state the caller may then look at); `seed`
+/// seeds the planner.
+pub fn clear_cell(cell: &mut PickCell, seed: u64) -> Result<Vec<ObjectPicks>> {
     let mut picks: Vec<ObjectPicks> =
-        scene.objects.iter().map(|o| ObjectPicks { object: o.id, attempts: Vec::new() }).collect();
+        cell.objects.iter().map(|(id, _, _)| ObjectPicks { object: *id, attempts: Vec::new() }).collect();
     for pass in 0..CLEARING_PASSES {
         let mut todo: Vec<u32> = picks
             .iter()
@@ -474,7 +493,7 @@ pub fn clear_scene(scn: &Scenario, work: &Workcell, scene: &Scene) -> Result<Vec
                 |id: &u32| cell.body(*id).map(|(_, b)| cell.cell.world.bodies[b].center_of_mass().z).unwrap_or(0.0);
             let next = *todo.iter().max_by(|a, b| height(a).total_cmp(&height(b))).expect("not empty");
             todo.retain(|&id| id != next);
-            let seed = scene.seed.wrapping_mul(31).wrapping_add(next as u64 + 1000 * pass as u64);
+            let seed = seed.wrapping_mul(31).wrapping_add(next as u64 + 1000 * pass as u64);
             let outcome = cell.pick(next, seed)?;
             progress |= outcome.placed;
             picks.iter_mut().find(|p| p.object == next).expect("every object listed").attempts.push(outcome);

@@ -1,8 +1,8 @@
 //! A run recorded for rerun: `marvin run --rerun FILE.rrd` writes a file that rerun's own reader
 //! decodes to the end, holding the entities a person looks for (the cameras and their images,
 //! the edgels and 2D lines, the 3D lines, the located parts, the calibration, the bins, the
-//! objects, stage times, the log). `marvin locate --rerun` and `marvin calibrate --rerun` record
-//! what they have.
+//! objects, stage times, the log). `marvin locate --rerun`, `marvin calibrate --rerun` and
+//! `marvin pick --rerun` record what they have.
 #![cfg(feature = "rerun")]
 
 use re_log_encoding::DecoderApp;
@@ -73,7 +73,12 @@ fn a_run_is_recorded_with_its_entities() {
 }
 
 #[test]
-fn locate_and_calibrate_record_what_they_have() {
+fn locate_calibrate_and_pick_record_what_they_have() {
+    let picked = recorded_entities("pick", &["pick", "worlds/widgets.toml", "--object", "1", "--rerun"]);
+    assert_holds(
+        &picked,
+        &["cell/fixed/table", "cell/truth/objects/1", "cell/truth/objects/7", "cell/arm/upper_arm", "log"],
+    );
     let located = recorded_entities("locate", &["locate", "worlds/widgets.toml", "--seed", "2", "--rerun"]);
     assert_holds(
         &located,

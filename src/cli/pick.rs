@@ -1,7 +1,8 @@
 //! `marvin pick`: settle a scene, pick one object from its true pose, report what happened.
 
 use super::output::emit;
-use marvin::pick::{PickCell, PickOutcome, clear_scene, load, single_object_scenario};
+use marvin::pick::{PickCell, PickOutcome, clear_cell, load, single_object_scenario};
+use marvin::recording::{Recording, Sink};
 use std::path::Path;
 use std::time::Instant;
 
@@ -12,6 +13,7 @@ pub fn run(
     model: Option<&str>,
     seed: Option<u64>,
     json: bool,
+    rerun: Option<&Path>,
 ) -> anyhow::Result<()> {
     let (mut scn, work) = load(world)?;
     if let Some(model) = model {
@@ -24,11 +26,26 @@ pub fn run(
     let seed = seed.unwrap_or(scn.world.seed);
     let (scene, _) = super::output::settle(&scn, seed);
     let started = Instant::now();
+    let mut cell = PickCell::new(&scn, &work, &scene)?;
+    let mut recording = rerun.map(|path| Recording::start(&Sink::File(path.to_path_buf()))).transpose()?;
+    if let Some(r) = recording.as_mut() {
+        record_cell(r, &cell, 0)?;
+    }
     let outcomes = match object {
-        Some(id) => vec![PickCell::new(&scn, &work, &scene)?.pick(id, seed)?],
-        None => clear_scene(&scn, &work, &scene)?.into_iter().flat_map(|o| o.attempts).collect(),
+        Some(id) => vec![cell.pick(id, seed)?],
+        None => clear_cell(&mut cell, seed)?.into_iter().flat_map(|o| o.attempts).collect(),
     };
     let wall_s = started.elapsed().as_secs_f64();
+    if let (Some(mut r), Some(path)) = (recording, rerun) {
+        for out in &outcomes {
+            r.text(&format!("object {} ({}): {}", out.object, out.model, out.result))?;
+        }
+        record_cell(&mut r, &cell, 1)?;
+        r.finish()?;
+        if !json {
+            eprintln!("recorded the picks in {} (open it with `rerun {}`)", path.display(), path.display());
+        }
+    }
     if json {
         let mut v = serde_json::json!({ "picks": outcomes, "wall_s": wall_s });
         v["placed"] = serde_json::json!(outcomes.iter().filter(|o| o.placed).count());
@@ -60,4 +77,27 @@ fn report(out: &PickOutcome) -> anyhow::Result<()> {
         out.max_tracking_error,
         out.worst_tracking_step.as_deref().unwrap_or("-")
     ))
+}
+
+/// The cell as the simulation has it, for rerun: the table and bins, the objects, the arm; at
+/// step 0 (before the picks) or 1 (after them).
+fn record_cell(r: &mut Recording, cell: &PickCell, step: usize) -> anyhow::Result<()> {
+    use marvin::protocol::{TruthReply, WirePose};
+    r.at(step, cell.simulated_s);
+    let scn = cell.scn;
+    let world_from_base = cell.work.world_from_base;
+    let world_from_cam = sim::rig::calibration(&scn.world.cameras).left.world_from_cam;
+    let truth = TruthReply {
+        objects: cell.truth_objects(),
+        tool_in_gripper: None,
+        world_from_base: WirePose::new(None, &world_from_base),
+        world_from_cam: WirePose::new(None, &world_from_cam),
+        cam_from_base: WirePose::new(None, &(world_from_cam.inverse() * world_from_base)),
+        unsettled: None,
+    };
+    if step == 0 {
+        r.cell_layout(scn)?;
+    }
+    r.truth(&truth, &scn.library)?;
+    r.arm(&cell.work.arm, &cell.arm.joints(&cell.cell), cell.arm.opening(&cell.cell))
 }

@@ -12,7 +12,7 @@ use super::{CellJob, Shared};
 use crate::pick::{HOME, PickCell, Workcell, grasp_candidates, place_target, static_obstacles};
 use crate::protocol::{
     BinBox, CaptureReply, ErrorCode, Frame, HelloReply, Intrinsics, MoveReply, MoveTarget, PROTOCOL, PickOutcomeKind,
-    PickReply, PickSpec, Request, RigCalibration, StatusReply, ToolReply, TruthObject, TruthReply, WireError, WirePose,
+    PickReply, PickSpec, Request, RigCalibration, StatusReply, ToolReply, TruthReply, WireError, WirePose,
 };
 use anyhow::Context;
 use base64::Engine;
@@ -568,17 +568,7 @@ impl<'a> SimCell<'a> {
 
     /// The simulation's truth, for evaluation only.
     fn truth(&self) -> TruthReply {
-        let objects = self
-            .pick
-            .objects
-            .iter()
-            .map(|(id, model, body)| TruthObject {
-                id: *id,
-                model: model.clone(),
-                world_from_model: WirePose::new(None, &self.pick.cell.pose(*body)),
-                in_bin: self.pick.inside_any_bin(*body),
-            })
-            .collect();
+        let objects = self.pick.truth_objects();
         let world_from_cam = self.calib.left.world_from_cam;
         let world_from_gripper = self.pick.arm.world_from_gripper(&self.pick.cell);
         TruthReply {
