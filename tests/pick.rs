@@ -64,7 +64,10 @@ fn single_objects_are_picked_and_placed() {
 
 /// Two clutter scenes of the reporting range (seeds from 10001: never used to choose anything)
 /// cleared object by object from true poses. Every attempt is kept: the first attempts are
-/// judged as well as how each object ended.
+/// judged as well as how each object ended. Measured: all 14 cleared, all at their first pick
+/// (`marvin eval pick worlds/widgets.toml --trials 2 --seed 10001`); the limits let one part
+/// stay and two first picks fail (over 20 scenes 98.6% are cleared and 95.0% go at the first
+/// pick).
 #[test]
 fn clutter_is_cleared_into_the_bin() {
     let (scn, work) = load(world()).unwrap();
