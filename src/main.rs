@@ -221,6 +221,9 @@ enum Command {
         rerun: Option<PathBuf>,
     },
     /// Run seeded scenes through the pipeline and compare with ground truth.
+    ///
+    /// Every evaluation's JSON names its `world` and the `seeds` it ran (first and last). Seeds
+    /// 1-9999 are for tuning, seeds from 10001 for reporting (see the README).
     Eval {
         #[command(subcommand)]
         what: eval::EvalTarget,

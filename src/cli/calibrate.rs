@@ -249,6 +249,8 @@ pub fn eval(world: &Path, trials: u64, seed: u64, poses: usize, json: bool) -> a
     progress.finish();
     let q = |v: &[f64], p: f64| marvin::eval::quantile(v, p);
     let report = json!({
+        "world": scn.world.name,
+        "seeds": [seed, seed + trials - 1],
         "trials": trials,
         "translation_err_mm_median": q(&t_err, 0.5),
         "translation_err_mm_p90": q(&t_err, 0.9),

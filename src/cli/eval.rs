@@ -179,6 +179,8 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
         })
         .collect();
     let report = serde_json::json!({
+        "world": scn.world.name,
+        "seeds": [seed, seed + scenes - 1],
         "scenes": scenes,
         "disparity_within_0_5px": total.within_fraction(),
         "wrong_matches": total.wrong_fraction(),
@@ -263,6 +265,8 @@ fn run_locate(world: &std::path::Path, scenes: u64, seed: u64, json: bool) -> an
         total.add(&stats);
     }
     let report = serde_json::json!({
+        "world": scn.world.name,
+        "seeds": [seed, seed + scenes - 1],
         "scenes": scenes,
         "located_fraction": total.located as f64 / total.eligible.max(1) as f64,
         "pos_err_mm_median": quantile(&total.pos_err_mm, 0.5),

@@ -50,7 +50,9 @@ pub fn run(world: &Path, trials: u64, seed: u64, json: bool) -> anyhow::Result<(
     progress.finish();
     let wall_s = started.elapsed().as_secs_f64();
     let objects: Vec<&ObjectPicks> = clutter.iter().flat_map(|t| &t.outcome).collect();
-    let report = report(&objects, &single, &models, wall_s, clutter.iter().filter(|t| !t.settled).count());
+    let mut report = report(&objects, &single, &models, wall_s, clutter.iter().filter(|t| !t.settled).count());
+    report["world"] = json!(scn.world.name);
+    report["seeds"] = json!([seed, seed + trials - 1]);
     if json {
         return emit(&serde_json::to_string_pretty(&report)?);
     }

@@ -401,6 +401,8 @@ pub fn eval(world: &Path, scenes: u64, seed: u64, json: bool) -> anyhow::Result<
     progress.finish();
     let q = |v: &[f64], p: f64| marvin::eval::quantile(v, p);
     let report = json!({
+        "world": scn.world.name,
+        "seeds": [seed, seed + scenes - 1],
         "scenes": scenes,
         "calibration": "one, on the first seed's scene, shared by all scenes",
         "calibration_error": calibration_error.map(|(mm, deg)| json!({ "translation_mm": mm, "rotation_deg": deg })),
