@@ -187,7 +187,7 @@ mod tests {
         SolveParams::for_box([0.03, 0.02, 0.002])
     }
 
-    fn truth() -> (Isometry3<f64>, Isometry3<f64>) {
+    fn synthetic_transforms() -> (Isometry3<f64>, Isometry3<f64>) {
         let x = Isometry3::from_parts(
             Translation3::new(-0.04, -0.18, 1.12),
             UnitQuaternion::from_euler_angles(2.1, -0.6, 0.9),
@@ -199,10 +199,10 @@ mod tests {
         (x, y)
     }
 
-    /// Gripper poses over a workspace, with pitch and roll; flag sightings from the truth with
+    /// Gripper poses over a workspace, with pitch and roll; flag sightings from these transforms with
     /// Gaussian pose noise (rotation sigma `sr` rad about a random axis, translation `st` m).
     fn sightings(n: usize, sr: f64, st: f64, seed: u64) -> Vec<Sighting> {
-        let (x, y) = truth();
+        let (x, y) = synthetic_transforms();
         let mut rng = StdRng::seed_from_u64(seed);
         let (nr, nt) = (Normal::new(0.0, sr.max(1e-300)).unwrap(), Normal::new(0.0, st.max(1e-300)).unwrap());
         (0..n)
@@ -232,7 +232,7 @@ mod tests {
 
     #[test]
     fn exact_sightings_give_the_transforms_to_1e_9() {
-        let (x, y) = truth();
+        let (x, y) = synthetic_transforms();
         let s = solve(&sightings(12, 0.0, 0.0, 1), &params()).unwrap();
         let (dt, dr) = pose_error(&s.cam_from_base, &x);
         assert!(dt < 1e-9 && dr < 1e-9, "cam_from_base off by {dt} m, {dr} rad");
@@ -241,18 +241,18 @@ mod tests {
         assert!(s.residual_mm_rms < 1e-6 && s.dropped.is_empty());
     }
 
-    /// The error of an estimate against the synthetic truth as the covariance measures it: left
+    /// The error of an estimate against the synthetic transforms as the covariance measures it: left
     /// rotation vector and translation difference, six numbers.
-    fn error_vector(x: &Isometry3<f64>, truth: &Isometry3<f64>) -> [f64; 6] {
-        let w = log(&(truth.rotation * x.rotation.inverse()));
-        let t = truth.translation.vector - x.translation.vector;
+    fn error_vector(x: &Isometry3<f64>, exact: &Isometry3<f64>) -> [f64; 6] {
+        let w = log(&(exact.rotation * x.rotation.inverse()));
+        let t = exact.translation.vector - x.translation.vector;
         [w.x, w.y, w.z, t.x, t.y, t.z]
     }
 
-    /// The error of `cam_from_base` against the truth, in units of the reported covariance: its
+    /// The error of `cam_from_base` against the synthetic one, in units of the reported covariance: its
     /// squared Mahalanobis length, rotation and translation apart.
     fn mahalanobis(s: &Solution) -> (f64, f64) {
-        let e = error_vector(&s.cam_from_base, &truth().0);
+        let e = error_vector(&s.cam_from_base, &synthetic_transforms().0);
         let block = |k: usize| {
             let cov: Matrix3<f64> = s.covariance.fixed_view::<3, 3>(k, k).into_owned();
             let v = Vector3::new(e[k], e[k + 1], e[k + 2]);
@@ -295,8 +295,8 @@ mod tests {
         dropped.sort();
         assert_eq!(dropped, bad, "{:?}", got.dropped);
         assert!(got.dropped.iter().all(|(i, why)| why.starts_with(&format!("sighting {i}:"))), "{:?}", got.dropped);
-        let (dt, dr) = pose_error(&got.cam_from_base, &truth().0);
-        let (ct, cr) = pose_error(&clean.cam_from_base, &truth().0);
+        let (dt, dr) = pose_error(&got.cam_from_base, &synthetic_transforms().0);
+        let (ct, cr) = pose_error(&clean.cam_from_base, &synthetic_transforms().0);
         // Within the noise: no worse than 3 sigma, and near what the clean sightings give.
         assert!(
             dt * 1e3 < 3.0 * got.sigma.cam_from_base_mm && dr.to_degrees() < 3.0 * got.sigma.cam_from_base_deg,
@@ -309,7 +309,7 @@ mod tests {
     fn degenerate_motion_is_refused_with_its_reason() {
         let mut s = sightings(8, 0.0, 0.0, 3);
         // Only the SCARA's vertical axes: no pitch, no roll.
-        let (x, y) = truth();
+        let (x, y) = synthetic_transforms();
         for (k, si) in s.iter_mut().enumerate() {
             let b = Isometry3::from_parts(
                 si.base_from_gripper.translation,
