@@ -142,11 +142,7 @@ mod with_rerun {
 
         /// The calibration: sightings (where vision saw the flag, and where the robot's
         /// kinematics and the solution put it), the solved camera, and the true one if known.
-        pub fn calibration(
-            &mut self,
-            c: &Calibration,
-            true_cam_from_base: Option<&Isometry3<f64>>,
-        ) -> anyhow::Result<()> {
+        pub fn calibration(&mut self, c: &Calibration) -> anyhow::Result<()> {
             let s = &c.solution;
             let base_from_cam = s.cam_from_base.inverse();
             self.base_from_cam = Some(base_from_cam);
@@ -173,9 +169,6 @@ mod with_rerun {
                 &rerun::Points3D::new(predicted).with_radii([0.002]).with_colors([0xFFAA33FF]),
             )?;
             self.rec.log("cell/calibration/solved_camera", &transform(&base_from_cam))?;
-            if let Some(t) = true_cam_from_base {
-                self.rec.log("cell/calibration/true_camera", &transform(&t.inverse()))?;
-            }
             self.text(&format!(
                 "calibrated: {} of {} poses used, residuals {:.3} mm / {:.3} deg RMS",
                 s.used.iter().filter(|u| **u).count(),
@@ -183,6 +176,11 @@ mod with_rerun {
                 s.residual_mm_rms,
                 s.residual_deg_rms
             ))
+        }
+
+        /// Where the camera truly is (evaluation's view, after the fact), beside the solved pose.
+        pub fn true_camera(&self, true_cam_from_base: &Isometry3<f64>) -> anyhow::Result<()> {
+            Ok(self.rec.log("cell/calibration/true_camera", &transform(&true_cam_from_base.inverse()))?)
         }
 
         /// A camera pose known from a file (no sightings to show).
@@ -387,7 +385,10 @@ mod without_rerun {
             Ok(())
         }
         pub fn at(&self, _cycle: usize, _sim_time_s: f64) {}
-        pub fn calibration(&mut self, _c: &Calibration, _t: Option<&Isometry3<f64>>) -> anyhow::Result<()> {
+        pub fn calibration(&mut self, _c: &Calibration) -> anyhow::Result<()> {
+            Ok(())
+        }
+        pub fn true_camera(&self, _t: &Isometry3<f64>) -> anyhow::Result<()> {
             Ok(())
         }
         pub fn calibration_known(&mut self, _x: &Isometry3<f64>) -> anyhow::Result<()> {

@@ -211,7 +211,10 @@ fn record(
     for (k, p) in c.poses.iter().enumerate() {
         r.text(&format!("pose {}/{}: {}", k + 1, c.poses.len(), p.note))?;
     }
-    r.calibration(c, true_cam_from_base)?;
+    r.calibration(c)?;
+    if let Some(t) = true_cam_from_base {
+        r.true_camera(t)?;
+    }
     r.cell_layout(scn)?;
     r.finish()
 }

@@ -120,7 +120,7 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
         EvalTarget::Vision { world, scenes, seed, slices, json } => (world, scenes, seed, slices as usize, json),
         EvalTarget::Locate { world, scenes, seed, json } => return run_locate(&world, scenes, seed, json),
         EvalTarget::Pick { world, trials, seed, json } => return super::eval_pick::run(&world, trials, seed, json),
-        EvalTarget::Run { world, scenes, seed, json } => return super::run::eval(&world, scenes, seed, json),
+        EvalTarget::Run { world, scenes, seed, json } => return super::eval_run::eval(&world, scenes, seed, json),
         EvalTarget::Calibrate { world, trials, seed, poses, json } => {
             return super::calibrate::eval(&world, trials, seed, poses as usize, json);
         }

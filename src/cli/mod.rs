@@ -19,6 +19,7 @@ pub mod calibrate;
 pub mod edges;
 pub mod eval;
 pub mod eval_pick;
+pub mod eval_run;
 pub mod locate;
 pub mod output;
 pub mod pick;

@@ -1,0 +1,285 @@
+//! Evaluation of end-to-end runs. A [`Judge`] watches a run on an in-process server through the
+//! server's evaluation-only `truth` request and judges it after the fact (what was on the table,
+//! what each pick went for, what ended in the bin, how far the calibration was from the true
+//! camera); `marvin eval run` sums seeded runs.
+
+use super::calibrate::Cell;
+use super::output::emit;
+use super::run::{HandEye, Watcher, failures, hand_eye, outcome_name, run_once};
+use anyhow::Context;
+use marvin::calibrate::Calibration;
+use marvin::client::Client;
+use marvin::protocol::TruthReply;
+use marvin::recording::Recording;
+use marvin::run::{Cycle, RunConfig, Stop};
+use nalgebra::Isometry3;
+use serde_json::{Value, json};
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::time::Instant;
+use vision::matcher::Located;
+
+/// One pick as evaluation judged it.
+#[derive(Debug, Clone)]
+pub struct JudgedPick {
+    pub cycle: usize,
+    pub model: String,
+    pub support_fraction: f64,
+    pub image_support: f64,
+    /// The nearest object of the model chosen: its id and how far from vision's pose, mm.
+    pub nearest: Option<(u32, f64)>,
+}
+
+impl JudgedPick {
+    /// The object the pick went for: the nearest of its model, if within [`TARGET_THERE_M`].
+    pub fn target(&self) -> Option<u32> {
+        self.nearest.filter(|(_, mm)| *mm < TARGET_THERE_M * 1e3).map(|(id, _)| id)
+    }
+}
+
+/// What evaluation learns from the simulation after the fact (a local server only).
+#[derive(Debug, Clone, Default)]
+pub struct RunTruth {
+    /// Objects on the table (not in a bin) at the start, and in a bin at the end.
+    pub on_table_at_start: usize,
+    pub in_bin_at_end: usize,
+    /// Every pick tried, in order.
+    pub picks: Vec<JudgedPick>,
+    /// Why the scene had not settled when the cell started, if it had not.
+    pub unsettled: Option<String>,
+}
+
+impl RunTruth {
+    /// Picks at a pose where no object of the model chosen lay.
+    pub fn wrong_picks(&self) -> impl Iterator<Item = &JudgedPick> {
+        self.picks.iter().filter(|p| p.target().is_none())
+    }
+
+    /// For each pick tried, whether it was the first at its object (`false` for a wrong pick).
+    pub fn first_attempts(&self) -> Vec<bool> {
+        let mut seen = std::collections::BTreeSet::new();
+        self.picks.iter().map(|p| p.target().is_some_and(|id| seen.insert(id))).collect()
+    }
+}
+
+/// A pick is at an object of the model chosen when one lies this near vision's pose, metres.
+const TARGET_THERE_M: f64 = 0.02;
+
+/// The nearest true object of `model` to vision's pose of it: its id and how far, mm.
+fn nearest_true(truth: &TruthReply, model: &str, cam_from_model: &Isometry3<f64>) -> Option<(u32, f64)> {
+    let world_from_cam = truth.world_from_cam.to_isometry("world_from_cam").ok()?;
+    let p = world_from_cam * cam_from_model;
+    truth
+        .objects
+        .iter()
+        .filter(|o| o.model == model)
+        .filter_map(|o| Some((o.id, o.world_from_model.to_isometry("world_from_model").ok()?)))
+        .map(|(id, w)| (id, (w.translation.vector - p.translation.vector).norm() * 1e3))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+}
+
+/// How far a camera pose is from the true one: mm and degrees.
+fn calibration_error(client: &mut Client, cam_from_base: &Isometry3<f64>) -> anyhow::Result<(f64, f64)> {
+    let t = client.truth()?.cam_from_base.to_isometry("cam_from_base")?;
+    Ok((
+        (cam_from_base.translation.vector - t.translation.vector).norm() * 1e3,
+        cam_from_base.rotation.angle_to(&t.rotation).to_degrees(),
+    ))
+}
+
+/// Watches a run on a local server (and does nothing on a remote one, which opens no truth).
+pub struct Judge<'a> {
+    library: &'a mesh::Library,
+    pub truth: Option<RunTruth>,
+    /// The run's own calibration against the true camera, mm and degrees.
+    pub calibration_error: Option<(f64, f64)>,
+}
+
+impl<'a> Judge<'a> {
+    /// A judge for a run on a local server (`local`), of objects from `library`.
+    pub fn new(local: bool, library: &'a mesh::Library) -> Judge<'a> {
+        Judge { library, truth: local.then(RunTruth::default), calibration_error: None }
+    }
+
+    /// The judgement in `marvin run --json`'s document.
+    pub fn add_to(&self, doc: &mut Value) {
+        if let Some(t) = &self.truth {
+            doc["truth"] = json!({
+                "on_table_at_start": t.on_table_at_start,
+                "in_bin_at_end": t.in_bin_at_end,
+                "wrong_model_picks": t.wrong_picks().count(),
+            });
+        }
+        if let Some((mm, deg)) = self.calibration_error {
+            doc["calibration_error"] = json!({ "translation_mm": mm, "rotation_deg": deg });
+        }
+    }
+
+    /// The judgement as lines for `marvin run`'s summary.
+    pub fn summary(&self) -> Vec<String> {
+        let mut lines = Vec::new();
+        if let Some(t) = &self.truth {
+            lines.push(format!(
+                "against the simulation's truth: {} of {} objects cleared into the bin; {} picks at nothing of the model chosen",
+                t.in_bin_at_end,
+                t.on_table_at_start,
+                t.wrong_picks().count()
+            ));
+        }
+        if let Some((mm, deg)) = self.calibration_error {
+            lines.push(format!("calibration: {mm:.2} mm, {deg:.3} deg from the true camera pose"));
+        }
+        lines
+    }
+}
+
+impl Watcher for Judge<'_> {
+    fn started(
+        &mut self,
+        client: &mut Client,
+        cam_from_base: &Isometry3<f64>,
+        calibration: Option<&Calibration>,
+        recording: Option<&mut Recording>,
+    ) -> anyhow::Result<()> {
+        let Some(t) = self.truth.as_mut() else { return Ok(()) };
+        let start = client.truth()?;
+        t.on_table_at_start = start.objects.iter().filter(|o| !o.in_bin).count();
+        t.unsettled = start.unsettled;
+        if calibration.is_some() {
+            self.calibration_error = Some(calibration_error(client, cam_from_base)?);
+            if let Some(r) = recording {
+                r.true_camera(&start.cam_from_base.to_isometry("cam_from_base")?)?;
+            }
+        }
+        Ok(())
+    }
+
+    fn before_pick(&mut self, client: &mut Client, cycle: usize, chosen: &Located) -> anyhow::Result<()> {
+        let Some(t) = self.truth.as_mut() else { return Ok(()) };
+        let now = client.truth()?;
+        t.picks.push(JudgedPick {
+            cycle,
+            model: chosen.model.clone(),
+            support_fraction: chosen.support_fraction,
+            image_support: chosen.image_support,
+            nearest: nearest_true(&now, &chosen.model, &chosen.cam_from_model),
+        });
+        Ok(())
+    }
+
+    fn finished(&mut self, client: &mut Client, recording: Option<&mut Recording>) -> anyhow::Result<()> {
+        let Some(t) = self.truth.as_mut() else { return Ok(()) };
+        let end = client.truth()?;
+        t.in_bin_at_end = end.objects.iter().filter(|o| o.in_bin).count();
+        if let Some(r) = recording {
+            r.truth(&end, self.library)?;
+        }
+        Ok(())
+    }
+}
+
+/// `marvin eval run`: seeded end-to-end runs, one calibration (on the first seed's scene)
+/// shared by all: the cameras and the robot stand where the world file puts them in every scene.
+pub fn eval(world: &Path, scenes: u64, seed: u64, json: bool) -> anyhow::Result<()> {
+    let scn = sim::Scenario::load(world)?;
+    let cell = Cell::start(world, seed, None)?;
+    let mut client = cell.connect()?;
+    let (cam_from_base, _) = hand_eye(&mut client, &scn.library, &HandEye::Calibrate, seed, true)?;
+    let calibration_error = calibration_error(&mut client, &cam_from_base)?;
+    client.bye()?;
+    cell.stop()?;
+    let progress = super::output::Progress::new(scenes, json);
+    let (mut on_table, mut cleared, mut picks, mut placed, mut wrong) = (0, 0, 0, 0, Vec::new());
+    let (mut first_attempts, mut first_placed, mut unsettled) = (0, 0, 0);
+    let (mut cycles, mut cycle_s, mut vision_ms) = (0usize, Vec::new(), Vec::new());
+    let mut all_failures: BTreeMap<String, usize> = BTreeMap::new();
+    let mut stops: BTreeMap<&'static str, usize> = BTreeMap::new();
+    for k in 0..scenes {
+        let s = seed + k;
+        let clock = Instant::now();
+        let cell = Cell::start(world, s, None)?;
+        let known = HandEye::Known(cam_from_base);
+        let mut judge = Judge::new(true, &scn.library);
+        let config = RunConfig::default();
+        let r = run_once(&cell, &scn, s, &known, &config, true, &mut |_| String::new(), None, &mut judge)?;
+        cell.stop()?;
+        let truth = judge.truth.context("a local server gives the truth")?;
+        let (p, ok) = (
+            r.cycles.iter().filter(|c| c.chosen.is_some()).count(),
+            r.cycles.iter().filter(|c| outcome_name(c) == "placed").count(),
+        );
+        (on_table, cleared, picks, placed) =
+            (on_table + truth.on_table_at_start, cleared + truth.in_bin_at_end, picks + p, placed + ok);
+        wrong.extend(truth.wrong_picks().map(|p| {
+            json!({ "seed": s, "cycle": p.cycle + 1, "model": p.model, "support": p.support_fraction,
+                    "image_support": p.image_support, "nearest_of_model_mm": p.nearest.map(|(_, mm)| mm) })
+        }));
+        unsettled += usize::from(truth.unsettled.is_some());
+        let tried = r.cycles.iter().filter(|c| c.chosen.is_some());
+        for (c, first) in tried.zip(truth.first_attempts()) {
+            first_attempts += usize::from(first);
+            first_placed += usize::from(first && outcome_name(c) == "placed");
+        }
+        cycles += r.cycles.len();
+        cycle_s.extend(r.cycles.iter().map(|c| c.cycle_s));
+        vision_ms.extend(r.cycles.iter().map(Cycle::vision_ms));
+        for (kind, n) in failures(&r.cycles) {
+            *all_failures.entry(kind).or_insert(0) += n;
+        }
+        let stop = match r.stop {
+            Stop::NothingLocated => "nothing_located",
+            Stop::NothingPickable => "nothing_pickable",
+            Stop::MaxCycles => "max_cycles",
+        };
+        *stops.entry(stop).or_insert(0) += 1;
+        progress.step(format!(
+            "seed {s}: {} of {} cleared, {ok} of {p} picks placed, stopped by {stop} ({:.1} s)",
+            truth.in_bin_at_end,
+            truth.on_table_at_start,
+            clock.elapsed().as_secs_f64()
+        ));
+    }
+    progress.finish();
+    let q = |v: &[f64], p: f64| marvin::eval::quantile(v, p);
+    let report = json!({
+        "world": scn.world.name,
+        "seeds": [seed, seed + scenes - 1],
+        "scenes": scenes,
+        "calibration": "one, on the first seed's scene, shared by all scenes",
+        "calibration_error": json!({ "translation_mm": calibration_error.0, "rotation_deg": calibration_error.1 }),
+        "cleared_fraction": cleared as f64 / on_table.max(1) as f64,
+        "pick_success_rate": placed as f64 / picks.max(1) as f64,
+        "first_attempt_success_rate": first_placed as f64 / first_attempts.max(1) as f64,
+        "attempts_per_object": picks as f64 / placed.max(1) as f64,
+        "wrong_model_picks": wrong.len(),
+        "wrong_picks": wrong,
+        "cycles_mean": cycles as f64 / scenes.max(1) as f64,
+        "cycle_s_mean": cycle_s.iter().sum::<f64>() / cycle_s.len().max(1) as f64,
+        "vision_cycle_ms_median": q(&vision_ms, 0.5),
+        "failures": all_failures,
+        "stopped_by": stops,
+        "unsettled_scenes": unsettled,
+    });
+    if json { emit(&report.to_string()) } else { emit(&serde_json::to_string_pretty(&report)?) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{JudgedPick, RunTruth};
+
+    #[test]
+    fn a_pick_is_a_first_attempt_only_at_an_object_not_tried_before() {
+        let pick = |nearest: Option<(u32, f64)>| JudgedPick {
+            cycle: 0,
+            model: "m".into(),
+            support_fraction: 0.5,
+            image_support: 0.5,
+            nearest,
+        };
+        let picks =
+            vec![pick(Some((3, 1.0))), pick(None), pick(Some((3, 2.0))), pick(Some((5, 0.5))), pick(Some((5, 25.0)))];
+        let t = RunTruth { picks, ..RunTruth::default() };
+        assert_eq!(t.first_attempts(), [true, false, false, true, false]);
+        assert_eq!(t.wrong_picks().count(), 2);
+    }
+}
