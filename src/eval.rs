@@ -310,6 +310,30 @@ pub struct LocateStats {
     pub rot_err_deg: Vec<f64>,
     /// Per model: eligible objects and how many of them were located.
     pub by_model: std::collections::BTreeMap<String, [usize; 2]>,
+    /// Each false report, and each eligible object not located, to look into.
+    pub false_reports: Vec<FalseReport>,
+    pub missed: Vec<Missed>,
+}
+
+/// A report that matched no object: what it was, and what lay nearest.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FalseReport {
+    pub model: String,
+    pub support_fraction: f64,
+    pub image_support: f64,
+    /// The nearest object of the same model (taken or not): its id, position and rotation
+    /// errors (mm, deg, over the symmetries); `None` when the scene has none.
+    pub same_model: Option<(usize, f64, f64)>,
+    /// The nearest object of any model to the report's origin: its id, model, distance (mm).
+    pub nearest: Option<(usize, String, f64)>,
+}
+
+/// An eligible object that was not located.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Missed {
+    pub id: usize,
+    pub model: String,
+    pub visible_fraction: f64,
 }
 
 /// A report counts as correct within these.
@@ -323,6 +347,8 @@ impl LocateStats {
         self.reports += o.reports;
         self.false_positives += o.false_positives;
         self.pos_err_mm.extend_from_slice(&o.pos_err_mm);
+        self.false_reports.extend_from_slice(&o.false_reports);
+        self.missed.extend_from_slice(&o.missed);
         self.rot_err_deg.extend_from_slice(&o.rot_err_deg);
         for (model, [e, l]) in &o.by_model {
             let t = self.by_model.entry(model.clone()).or_default();
@@ -377,12 +403,13 @@ pub fn locate_stats(
     let cam = &calib.left;
     let truths: Vec<(usize, nalgebra::Isometry3<f64>)> =
         scene.objects.iter().enumerate().map(|(i, o)| (i, cam.cam_from_world() * o.world_from_model)).collect();
-    let eligible: Vec<bool> = scene
+    let visible: Vec<f64> = scene
         .objects
         .iter()
         .zip(&truths)
-        .map(|(o, (_, pose))| visible_fraction(&library.models[&o.model], pose, cam, left_depth) >= 0.3)
+        .map(|(o, (_, pose))| visible_fraction(&library.models[&o.model], pose, cam, left_depth))
         .collect();
+    let eligible: Vec<bool> = visible.iter().map(|v| *v >= 0.3).collect();
     let mut stats =
         LocateStats { eligible: eligible.iter().filter(|e| **e).count(), reports: located.len(), ..Default::default() };
     for (o, &e) in scene.objects.iter().zip(&eligible) {
@@ -403,8 +430,43 @@ pub fn locate_stats(
                 stats.pos_err_mm.push(pos * 1e3);
                 stats.rot_err_deg.push(rot.to_degrees());
             }
-            _ => stats.false_positives += 1,
+            _ => {
+                stats.false_positives += 1;
+                stats.false_reports.push(false_report(loc, scene, &truths, &symmetry[&loc.model]));
+            }
         }
     }
+    for (i, o) in scene.objects.iter().enumerate().filter(|(i, _)| eligible[*i] && !taken[*i]) {
+        stats.missed.push(Missed { id: i, model: o.model.clone(), visible_fraction: visible[i] });
+    }
     stats
+}
+
+/// What lay nearest a report that matched nothing.
+fn false_report(
+    loc: &vision::matcher::Located,
+    scene: &sim::Scene,
+    truths: &[(usize, nalgebra::Isometry3<f64>)],
+    symmetry: &[nalgebra::Isometry3<f64>],
+) -> FalseReport {
+    let same_model = truths
+        .iter()
+        .filter(|(i, _)| scene.objects[*i].model == loc.model)
+        .map(|(i, pose)| {
+            let (pos, rot) = pose_error(&loc.cam_from_model, pose, symmetry);
+            (*i, pos * 1e3, rot.to_degrees())
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1));
+    let nearest = truths
+        .iter()
+        .map(|(i, pose)| (*i, (pose.translation.vector - loc.cam_from_model.translation.vector).norm() * 1e3))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(i, d)| (i, scene.objects[i].model.clone(), d));
+    FalseReport {
+        model: loc.model.clone(),
+        support_fraction: loc.support_fraction,
+        image_support: loc.image_support,
+        same_model,
+        nearest,
+    }
 }

@@ -243,6 +243,7 @@ fn run_locate(world: &std::path::Path, scenes: u64, seed: u64, json: bool) -> an
     let mut match_ms = Vec::new();
     let params = vision::matcher::MatchParams::default();
     let mut unsettled = 0;
+    let (mut false_reports, mut missed) = (Vec::new(), Vec::new());
     for k in 0..scenes {
         let s = seed + k;
         let p = run_pipeline(&scn, s);
@@ -254,6 +255,12 @@ fn run_locate(world: &std::path::Path, scenes: u64, seed: u64, json: bool) -> an
         let located = vision::matcher::locate_all(&models, &lines, &params, Some(&evidence));
         match_ms.push(clock.elapsed().as_secs_f64() * 1e3);
         let stats = locate_stats(&located, &p.scene, &scn.library, &calib, &p.left.depth, &symmetry);
+        for f in &stats.false_reports {
+            false_reports.push(serde_json::json!({ "seed": s, "report": f }));
+        }
+        for m in &stats.missed {
+            missed.push(serde_json::json!({ "seed": s, "object": m }));
+        }
         eprintln!(
             "scene {}/{scenes} (seed {s}): located {}/{} visible objects, {} false of {} reports",
             k + 1,
@@ -276,6 +283,8 @@ fn run_locate(world: &std::path::Path, scenes: u64, seed: u64, json: bool) -> an
         "match_ms_median": quantile(&match_ms, 0.5),
         "unsettled_scenes": unsettled,
         "located_by_model": total.by_model.iter().map(|(m, [e, l])| (m.clone(), *l as f64 / (*e).max(1) as f64)).collect::<BTreeMap<_, _>>(),
+        "false_reports": false_reports,
+        "missed": missed,
     });
     if json { emit(&report.to_string()) } else { emit(&serde_json::to_string_pretty(&report)?) }
 }

@@ -32,6 +32,18 @@ impl Solid {
         }
     }
 
+    /// Whether the solid may hide any of `other`, seen from a camera at the origin: their
+    /// spheres' cones of sight overlap and part of this one lies nearer than all of the other.
+    pub fn may_hide(&self, other: &Solid) -> bool {
+        let (d, e) = (self.centre.coords.norm(), other.centre.coords.norm());
+        if d <= self.radius || e <= other.radius {
+            return true;
+        }
+        let apart = self.centre.coords.angle(&other.centre.coords);
+        let reach = (self.radius / d).asin() + (other.radius / e).asin();
+        apart < reach && d - self.radius < e + other.radius
+    }
+
     /// Whether the solid hides point `x` (`cam` frame) from a camera at the origin.
     pub fn hides(&self, x: &Point3<f64>) -> bool {
         let eye = Point3::origin();
@@ -75,5 +87,16 @@ mod tests {
             }
         }
         assert!(facing >= 5 && hidden_far >= 1, "{facing} edges face the camera, {hidden_far} far ones are hidden");
+    }
+
+    /// A block may hide one straight behind it, not one beside it, nor one in front of it.
+    #[test]
+    fn a_solid_may_hide_only_what_lies_behind_it_in_view() {
+        let model = crate::matcher::fixtures::model("block");
+        let at = |x: f64, z: f64| Solid::new(&model, &Isometry3::translation(x, 0.0, z));
+        let (front, behind, beside) = (at(0.0, 0.7), at(0.0, 0.9), at(0.3, 0.9));
+        assert!(front.may_hide(&behind));
+        assert!(!front.may_hide(&beside));
+        assert!(!at(0.0, 1.2).may_hide(&front));
     }
 }

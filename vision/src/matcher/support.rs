@@ -31,6 +31,23 @@ pub fn support_at(model: &MatcherModel, pose: &Isometry3<f64>, scene: &[Seg], p:
     (score / model.total_length, model_lines_of(&pairs).len())
 }
 
+/// The length of the scene lines of `pairs` (model line, scene line, overlap) that lies along
+/// none of the model lines they match, counting only a line's excess of more than
+/// [`OVERRUN_SLACK_M`] (a line's end found a little past a corner is no evidence).
+pub(crate) fn overrun(pairs: &[(usize, usize, f64)], scene: &[Seg]) -> f64 {
+    scene_lines_of(pairs)
+        .into_iter()
+        .map(|j| {
+            let along: f64 = pairs.iter().filter(|x| x.1 == j).map(|x| x.2).sum();
+            (scene[j].len - along).max(0.0)
+        })
+        .filter(|excess| *excess > OVERRUN_SLACK_M)
+        .sum()
+}
+
+/// See [`overrun`], metres.
+pub(crate) const OVERRUN_SLACK_M: f64 = 0.004;
+
 /// The distinct model lines of (model line, scene line, overlap) correspondences, in order.
 pub(crate) fn model_lines_of(pairs: &[(usize, usize, f64)]) -> Vec<usize> {
     distinct(pairs.iter().map(|&(i, ..)| i))
@@ -199,6 +216,22 @@ pub(crate) fn support_score(
 mod tests {
     use super::*;
     use crate::matcher::fixtures::Lcg;
+
+    /// A scene line along a block's edge that runs 10 mm past its end overruns it by 10 mm; one
+    /// found 3 mm long, or lying along two of its edges (none here), by nothing.
+    #[test]
+    fn a_line_running_past_an_edge_end_overruns_it() {
+        let model = crate::matcher::fixtures::model("block");
+        let pose = Isometry3::translation(0.0, 0.0, 0.8);
+        let edge = model.lines[0].transformed(&pose);
+        let past = |extra: f64| vec![Seg::new(edge.a, edge.b + edge.dir * extra)];
+        for (extra, expect) in [(0.010, 0.010), (0.003, 0.0), (0.0, 0.0)] {
+            let scene = past(extra);
+            let pairs = correspondences_at(&model, &pose, &scene, &MatchParams::default());
+            assert!(!pairs.is_empty(), "the line supports its edge");
+            assert!((overrun(&pairs, &scene) - expect).abs() < 1e-9, "{extra} m past: {}", overrun(&pairs, &scene));
+        }
+    }
 
     /// The grid of lines near each cell never rules out a model line that a scene line lies
     /// along: over random segments round and along every model, what it leaves out has no

@@ -88,6 +88,16 @@ pub fn image_support(model: &MatcherModel, pose: &Isometry3<f64>, ev: &ImageEvid
     image_support_at_least(model, pose, ev, 0.0).unwrap_or(0.0)
 }
 
+/// The length (pixels) of the projected, camera-facing wireframe that [`image_support`] samples:
+/// what the image should show of the model at `pose`.
+pub fn facing_length_px(model: &MatcherModel, pose: &Isometry3<f64>, cam: &PinholeCamera) -> f64 {
+    facing_lines(model, pose, cam)
+        .map(|(_, [a, b])| (b - a).norm())
+        .filter(|len| *len >= 2.0 * STEP_PX)
+        .map(|len| STEP_PX * ((len / STEP_PX) as usize - 1) as f64)
+        .sum()
+}
+
 /// [`image_support`], given up (`None`) as soon as it cannot reach `min`: the samples are laid
 /// out first, and the count stops when even all the samples left could not lift it to `min`.
 pub fn image_support_at_least(
