@@ -193,9 +193,13 @@ fn pick_order(
 ) -> Vec<usize> {
     let base_from_cam = cam_from_base.inverse();
     let in_base = |l: &Located| base_from_cam * l.cam_from_model;
+    // Anything over a bin's floor lies in it or on what is in it: parts pile up over the rim.
     let in_a_bin = |l: &Located| {
         let p = in_base(l).translation.vector;
-        bins.iter().any(|b| (0..3).all(|k| (p[k] - b.centre_base_m[k]).abs() <= b.size_m[k] / 2.0 + BIN_MARGIN_M))
+        bins.iter().any(|b| {
+            let over_floor = p.z >= b.centre_base_m[2] - b.size_m[2] / 2.0 - BIN_MARGIN_M;
+            over_floor && (0..2).all(|k| (p[k] - b.centre_base_m[k]).abs() <= b.size_m[k] / 2.0 + BIN_MARGIN_M)
+        })
     };
     let tries = |l: &Located| {
         failed
@@ -213,7 +217,8 @@ fn pick_order(
     order
 }
 
-/// A located part is taken to lie in a bin when its origin is within this of the bin's box.
+/// A located part is taken to lie in a bin when its origin is within this of the bin's
+/// footprint, anywhere above its floor.
 const BIN_MARGIN_M: f64 = 0.02;
 
 /// The pick request for part `i`: its first grasp and its pose in `cam`, the others as
