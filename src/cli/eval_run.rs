@@ -5,7 +5,7 @@
 
 use super::calibrate::Cell;
 use super::output::emit;
-use super::run::{HandEye, Watcher, failures, hand_eye, outcome_name, run_once};
+use super::session::{HandEye, Watcher, failures, hand_eye, outcome_name, run_once};
 use anyhow::Context;
 use marvin::calibrate::Calibration;
 use marvin::client::Client;

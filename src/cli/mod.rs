@@ -1,6 +1,8 @@
 //! The command line's verbs, one file each; `main.rs` parses the arguments and calls them.
 //!
-//! - [`run`]: the main job, pick cycles until the table is clear; and its evaluation.
+//! - [`run`]: the main job, pick cycles until the table is clear.
+//! - [`session`]: one run on a robot server, shared by `run` and `eval run`.
+//! - [`eval_run`]: seeded runs judged against the simulation's truth.
 //! - [`render`]: settle a world and render both cameras.
 //! - [`edges`]: Canny and edge strings of any image.
 //! - [`stereo`]: the front end on any stereo pair.
@@ -26,4 +28,5 @@ pub mod pick;
 pub mod render;
 pub mod run;
 pub mod serve;
+pub mod session;
 pub mod stereo;
