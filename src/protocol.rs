@@ -370,6 +370,10 @@ pub struct HelloReply {
     /// Where the bins are: the cell's layout, which a client needs to tell parts on the table
     /// from parts already placed.
     pub bin_boxes: Vec<BinBox>,
+    /// The table's top, its height in `base`, metres: the cell's layout too, so a client can
+    /// tell a part resting on the table from a reading of one in mid-air.
+    #[serde(default)]
+    pub table_top_base_m: Option<f64>,
     pub calibrated: bool,
 }
 

@@ -1,6 +1,6 @@
 //! The end-to-end run, MARVIN's whole cycle: the arm parks out of view, the stereo pair is
-//! captured, the front end and the matcher locate the parts, the next one is chosen (not under
-//! another, reachable, best supported) and its grasp goes over the socket in the `cam` frame;
+//! captured, the front end and the matcher locate the parts, the next one is chosen (resting
+//! where it could lie, not under another, reachable, best supported) and its grasp goes over the socket in the `cam` frame;
 //! the robot server picks it into the bin; again, until nothing more is located. Nothing here
 //! reads the simulation's truth: poses come from vision, the camera-to-robot transform from
 //! calibration. (Evaluation may watch through a hook, and judges afterwards.)
@@ -123,6 +123,7 @@ pub fn run(
     anyhow::ensure!(hello.calibrated, "the robot server has no hand-eye transform: calibrate first");
     let bin = config.bin.clone().or_else(|| hello.bins.first().cloned()).context("the cell has no bin")?;
     let bin_boxes = hello.bin_boxes.clone();
+    let table_top = hello.table_top_base_m;
     let models = part_models(library);
     let mut failed: Vec<(String, Isometry3<f64>)> = Vec::new();
     let mut cycles = Vec::new();
@@ -148,7 +149,9 @@ pub fn run(
             cycles.push(cycle);
             return Ok(RunReport { cycles, stop: Stop::NothingLocated });
         }
+        let resting = resting(&cycle.located, library, cam_from_base, table_top);
         let order = pick_order(&cycle.located, cam_from_base, &bin_boxes, &failed);
+        let order: Vec<usize> = order.into_iter().filter(|&i| resting[i]).collect();
         for i in order {
             let spec = pick_spec(&cycle.located, i, &bin);
             match client.pick(PickSpec { plan_only: true, ..spec.clone() }) {
@@ -216,6 +219,52 @@ fn pick_order(
     order.sort_by(|&a, &b| band(b).cmp(&band(a)).then(located[b].support.total_cmp(&located[a].support)));
     order
 }
+
+/// Whether each located part could lie where vision puts it: its lowest point on the table
+/// (within [`RESTING_M`]), or over the table and on another part located (its lowest point no
+/// higher than the other's highest, their footprints overlapping). A reading in mid-air or in
+/// the table is a misreading, and a pick there would go for nothing. Without the table's height
+/// every part may rest.
+fn resting(
+    located: &[Located],
+    library: &mesh::Library,
+    cam_from_base: &Isometry3<f64>,
+    table_top: Option<f64>,
+) -> Vec<bool> {
+    let Some(top) = table_top else { return vec![true; located.len()] };
+    let base_from_cam = cam_from_base.inverse();
+    // Lowest and highest points, centre and radius in the base frame.
+    let extent: Vec<Option<(f64, f64, nalgebra::Point3<f64>, f64)>> = located
+        .iter()
+        .map(|l| {
+            let model = library.get(&l.model)?;
+            let pose = base_from_cam * l.cam_from_model;
+            let points: Vec<nalgebra::Point3<f64>> = model.mesh.vertices.iter().map(|v| pose * v).collect();
+            let (lo, hi) = points.iter().fold((f64::MAX, f64::MIN), |(lo, hi), p| (lo.min(p.z), hi.max(p.z)));
+            let centre = pose * nalgebra::Point3::origin();
+            let radius = points.iter().map(|p| (p.xy() - centre.xy()).norm()).fold(0.0, f64::max);
+            Some((lo, hi, centre, radius))
+        })
+        .collect();
+    (0..located.len())
+        .map(|i| {
+            let Some((lo, _, c, r)) = extent[i] else { return true };
+            if lo < top - RESTING_M {
+                return false;
+            }
+            lo <= top + RESTING_M
+                || extent.iter().enumerate().any(|(j, e)| {
+                    e.is_some_and(|(_, hi, cj, rj)| {
+                        j != i && hi >= lo - RESTING_M && (c.xy() - cj.xy()).norm() < r + rj
+                    })
+                })
+        })
+        .collect()
+}
+
+/// A part rests on what lies within this of its lowest point, metres (the calibration's
+/// error is about a millimetre, the matcher's a few tenths).
+const RESTING_M: f64 = 0.008;
 
 /// A located part is taken to lie in a bin when its origin is within this of the bin's
 /// footprint, anywhere above its floor.
@@ -295,4 +344,38 @@ pub fn table1(cycles: &[Cycle]) -> (Vec<Table1Row>, f64) {
         .collect();
     let efficiency = median(&|c| stage(c, &sliced) / (stage(c, &["slices"]) * cores));
     (rows, efficiency)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A block read on the table rests; one read in mid-air or sunk into the table does not;
+    /// one read on top of another rests on it.
+    #[test]
+    fn a_part_rests_on_the_table_or_on_another_part() {
+        let library = mesh::Library::load_default().unwrap();
+        let block = library.get("block").unwrap();
+        let (lo, hi) = block.mesh.vertices.iter().fold((f64::MAX, f64::MIN), |(lo, hi), v| (lo.min(v.z), hi.max(v.z)));
+        let at = |x: f64, z: f64| Located {
+            model: "block".into(),
+            cam_from_model: Isometry3::translation(x, 0.0, z),
+            support: 0.1,
+            support_fraction: 0.5,
+            scene_lines: vec![],
+            image_support: 0.9,
+            grasps: vec![],
+        };
+        // The base frame is the camera's here; the table's top at height 0.
+        let base = Isometry3::identity();
+        let on_table = at(0.0, -lo);
+        let judged = |parts: &[Located]| resting(parts, &library, &base, Some(0.0));
+        assert_eq!(judged(&[on_table.clone()]), [true]);
+        assert_eq!(judged(&[at(0.0, -lo + 0.03)]), [false], "in mid-air");
+        assert_eq!(judged(&[at(0.0, -lo - 0.02)]), [false], "in the table");
+        let stacked = at(0.01, (hi - lo) - lo);
+        assert_eq!(judged(&[on_table.clone(), stacked.clone()]), [true, true]);
+        assert_eq!(judged(&[at(0.5, -lo), stacked]), [true, false], "over nothing");
+        assert_eq!(resting(&[at(0.0, 0.5)], &library, &base, None), [true], "no table known");
+    }
 }

@@ -206,6 +206,8 @@ impl<'a> SimCell<'a> {
             models: self.scn.library.names().map(str::to_string).collect(),
             bins: self.scn.world.bins.iter().map(|b| b.name.clone()).collect(),
             bin_boxes: self.scn.world.bins.iter().map(|b| self.bin_box(b)).collect(),
+            // The world's origin is the centre of the table's top.
+            table_top_base_m: Some((self.work.world_from_base.inverse() * nalgebra::Point3::origin()).z),
             calibrated: self.cam_from_base.is_some(),
         }
     }
