@@ -1,9 +1,9 @@
 //! The end-to-end run, MARVIN's whole cycle: the arm parks out of view, the stereo pair is
-//! captured, the front end and the matcher locate the parts, the next one is chosen (resting
-//! where it could lie, not under another, reachable, best supported) and its grasp goes over the socket in the `cam` frame;
-//! the robot server picks it into the bin; again, until nothing more is located. Nothing here
-//! reads the simulation's truth: poses come from vision, the camera-to-robot transform from
-//! calibration. (Evaluation may watch through a hook, and judges afterwards.)
+//! captured, the front end and the matcher locate the parts, the next one is chosen (lying
+//! where it could, not under another, reachable, best supported) and its grasp goes over the
+//! socket in the `cam` frame; the robot server picks it into the bin; again, until nothing more
+//! is located. Nothing here reads the simulation's truth: poses come from vision, the
+//! camera-to-robot transform from calibration. (Evaluation may watch through a hook, and judges afterwards.)
 
 use crate::client::Client;
 use crate::perception::{Pair, front_end, locate_parts, part_models};
@@ -233,33 +233,42 @@ fn resting(
 ) -> Vec<bool> {
     let Some(top) = table_top else { return vec![true; located.len()] };
     let base_from_cam = cam_from_base.inverse();
-    // Lowest and highest points, centre and radius in the base frame.
-    let extent: Vec<Option<(f64, f64, nalgebra::Point3<f64>, f64)>> = located
-        .iter()
-        .map(|l| {
-            let model = library.get(&l.model)?;
-            let pose = base_from_cam * l.cam_from_model;
-            let points: Vec<nalgebra::Point3<f64>> = model.mesh.vertices.iter().map(|v| pose * v).collect();
-            let (lo, hi) = points.iter().fold((f64::MAX, f64::MIN), |(lo, hi), p| (lo.min(p.z), hi.max(p.z)));
-            let centre = pose * nalgebra::Point3::origin();
-            let radius = points.iter().map(|p| (p.xy() - centre.xy()).norm()).fold(0.0, f64::max);
-            Some((lo, hi, centre, radius))
-        })
-        .collect();
+    let extent: Vec<Option<Extent>> =
+        located.iter().map(|l| Some(Extent::of(library.get(&l.model)?, &(base_from_cam * l.cam_from_model)))).collect();
     (0..located.len())
         .map(|i| {
-            let Some((lo, _, c, r)) = extent[i] else { return true };
-            if lo < top - RESTING_M {
+            let Some(e) = &extent[i] else { return true };
+            if e.lowest < top - RESTING_M {
                 return false;
             }
-            lo <= top + RESTING_M
-                || extent.iter().enumerate().any(|(j, e)| {
-                    e.is_some_and(|(_, hi, cj, rj)| {
-                        j != i && hi >= lo - RESTING_M && (c.xy() - cj.xy()).norm() < r + rj
+            e.lowest <= top + RESTING_M
+                || extent.iter().enumerate().any(|(j, other)| {
+                    other.as_ref().is_some_and(|o| {
+                        j != i
+                            && o.highest >= e.lowest - RESTING_M
+                            && (e.centre - o.centre).norm() < e.radius + o.radius
                     })
                 })
         })
         .collect()
+}
+
+/// A part's lowest and highest points in the base frame, and the circle round its footprint.
+struct Extent {
+    lowest: f64,
+    highest: f64,
+    centre: nalgebra::Vector2<f64>,
+    radius: f64,
+}
+
+impl Extent {
+    fn of(model: &mesh::Model, base_from_model: &Isometry3<f64>) -> Extent {
+        let points: Vec<nalgebra::Point3<f64>> = model.mesh.vertices.iter().map(|v| base_from_model * v).collect();
+        let (lowest, highest) = points.iter().fold((f64::MAX, f64::MIN), |(lo, hi), p| (lo.min(p.z), hi.max(p.z)));
+        let centre = base_from_model.translation.vector.xy();
+        let radius = points.iter().map(|p| (p.coords.xy() - centre).norm()).fold(0.0, f64::max);
+        Extent { lowest, highest, centre, radius }
+    }
 }
 
 /// A part rests on what lies within this of its lowest point, metres (the calibration's
@@ -370,7 +379,7 @@ mod tests {
         let base = Isometry3::identity();
         let on_table = at(0.0, -lo);
         let judged = |parts: &[Located]| resting(parts, &library, &base, Some(0.0));
-        assert_eq!(judged(&[on_table.clone()]), [true]);
+        assert_eq!(judged(std::slice::from_ref(&on_table)), [true]);
         assert_eq!(judged(&[at(0.0, -lo + 0.03)]), [false], "in mid-air");
         assert_eq!(judged(&[at(0.0, -lo - 0.02)]), [false], "in the table");
         let stacked = at(0.01, (hi - lo) - lo);
