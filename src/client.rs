@@ -3,7 +3,7 @@
 
 use crate::protocol::{
     CaptureReply, HelloReply, MoveReply, MoveTarget, PROTOCOL, PickReply, PickSpec, Request, StatusReply, ToolReply,
-    TruthReply, WireError, WirePose,
+    WireError, WirePose,
 };
 use serde::de::DeserializeOwned;
 use serde_json::Value;
@@ -134,11 +134,6 @@ impl Client {
 
     pub fn home(&mut self) -> Result<MoveReply, ClientError> {
         self.call(&Request::Home {})
-    }
-
-    /// The simulation's truth: evaluation only, from a server started with `--truth`.
-    pub fn truth(&mut self) -> Result<TruthReply, ClientError> {
-        self.call(&Request::Truth {})
     }
 
     pub fn shutdown(&mut self) -> Result<Value, ClientError> {

@@ -1,4 +1,5 @@
-//! Ground truth for evaluation code only: exact ray casts into the settled scene's triangles.
+//! Ground truth for evaluation code only: exact ray casts into the settled scene's triangles,
+//! and [`AskTruth`], the robot server's evaluation-only request.
 
 use mesh::{PinholeCamera, TriMesh};
 use nalgebra::{Point3, Vector3};
@@ -66,5 +67,17 @@ impl TruthScene {
     ) -> Option<f64> {
         let p = self.edge_point(cam, x, y, orientation)?;
         Some(rect.disparity_of(&cam.world_from_cam.inverse_transform_point(&p)))
+    }
+}
+
+/// The robot server's `truth` request (served only with `--truth`, to evaluation). It is not a
+/// method of the client itself, so code on the run path cannot ask without taking this in.
+pub trait AskTruth {
+    fn truth(&mut self) -> Result<crate::protocol::TruthReply, crate::client::ClientError>;
+}
+
+impl AskTruth for crate::client::Client {
+    fn truth(&mut self) -> Result<crate::protocol::TruthReply, crate::client::ClientError> {
+        self.call(&crate::protocol::Request::Truth {})
     }
 }

@@ -14,6 +14,7 @@
 use marvin::calibrate::{CalibrateConfig, calibrate};
 use marvin::client::Client;
 use marvin::server::{CellConfig, Server, ServerConfig};
+use marvin::truth::AskTruth;
 use std::time::Duration;
 
 fn calibrate_seed(seed: u64) -> (f64, f64, usize) {

@@ -13,6 +13,7 @@ use marvin::client::Client;
 use marvin::protocol::WirePose;
 use marvin::run::{RunConfig, Stop, run};
 use marvin::server::{CellConfig, Server, ServerConfig};
+use marvin::truth::AskTruth;
 use std::time::Duration;
 
 fn server(seed: u64) -> (Server, Client) {

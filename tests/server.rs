@@ -6,6 +6,7 @@ use marvin::client::Client;
 use marvin::protocol::{
     ErrorCode, Frame, MoveTarget, PickOutcomeKind, PickSpec, PlaceSpec, TruthReply, WireGrasp, WireObject, WirePose,
 };
+use marvin::truth::AskTruth;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use serde_json::Value;
 use std::io::{BufRead, BufReader, Read, Write};

@@ -2,6 +2,7 @@
 
 use super::output::emit;
 use clap::{Args, Subcommand};
+use marvin::truth::AskTruth;
 use sim::render::{Light, RenderScene, render_stereo};
 use sim::{Scenario, Scene};
 use std::path::PathBuf;

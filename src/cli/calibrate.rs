@@ -8,6 +8,7 @@ use hand_eye::HandEyeFile;
 use marvin::calibrate::{CalibrateConfig, Calibration, calibrate};
 use marvin::client::Client;
 use marvin::server::{CellConfig, Server, ServerConfig};
+use marvin::truth::AskTruth;
 use nalgebra::Isometry3;
 use serde_json::{Value, json};
 use std::path::{Path, PathBuf};

@@ -12,6 +12,7 @@ use marvin::client::Client;
 use marvin::protocol::TruthReply;
 use marvin::recording::Recording;
 use marvin::run::{Cycle, RunConfig, Stop};
+use marvin::truth::AskTruth;
 use nalgebra::Isometry3;
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
