@@ -24,18 +24,18 @@ pub fn locate_all(
     let mut kept = Vec::new();
     let mut claimed = vec![false; scene.len()];
     let all: Vec<Located> = searches.iter_mut().flat_map(|s| std::mem::take(&mut s.found)).collect();
-    resolve(models, scene, all, &mut kept, &mut claimed, image);
+    resolve(models, (scene, p), all, &mut kept, &mut claimed, image);
     if let Some(ev) = image.filter(|ev| !ev.lines.is_empty()) {
         let (solids, explained) = (solids_of(models, &kept), explained_by(models, &kept, ev));
         let second: Vec<Located> = models
             .par_iter()
             .flat_map(|m| super::second_look::locate(m, scene, &claimed, p, ev, (&solids, &explained)))
             .collect();
-        resolve(models, scene, second, &mut kept, &mut claimed, image);
+        resolve(models, (scene, p), second, &mut kept, &mut claimed, image);
     }
     if let Some(ev) = image {
         let third = hidden_in_part(models, &searches, (&kept, &claimed), p, ev);
-        resolve(models, scene, third, &mut kept, &mut claimed, image);
+        resolve(models, (scene, p), third, &mut kept, &mut claimed, image);
     }
     kept
 }
@@ -104,7 +104,7 @@ pub(crate) fn hidden_in_part(
 /// the part still in view (a U-channel with an arm under a block is judged on the rest of it).
 pub(crate) fn resolve(
     models: &[MatcherModel],
-    scene: &[Seg],
+    (scene, p): (&[Seg], &MatchParams),
     reports: Vec<Located>,
     kept: &mut Vec<Located>,
     claimed: &mut [bool],
@@ -121,7 +121,7 @@ pub(crate) fn resolve(
         .into_iter()
         .filter_map(|loc| {
             let model = models.iter().find(|m| m.name == loc.model)?;
-            let (solid, matched) = (Solid::new(model, &loc.cam_from_model), matched_length(model, &loc, scene));
+            let (solid, matched) = (Solid::new(model, &loc.cam_from_model), matched_length(model, &loc, scene, p));
             Some(Pending { loc, model, solid, matched, score: 0.0 })
         })
         .collect();
@@ -162,13 +162,14 @@ pub(crate) fn resolve(
 /// arm missing), but the channel's web runs on past the bracket's end. On seeds 2001-2050 four
 /// such readings ran on by 8-12 mm; parts truly there mostly by nothing, but two L-brackets by
 /// 7-8 mm (lines merged with a neighbour's), so it weighs in the balance and rejects nothing.
-pub(crate) fn matched_length(model: &MatcherModel, l: &Located, scene: &[Seg]) -> f64 {
-    let pairs = super::support::correspondences_at(model, &l.cam_from_model, scene, &MatchParams::default());
+pub(crate) fn matched_length(model: &MatcherModel, l: &Located, scene: &[Seg], p: &MatchParams) -> f64 {
+    let pairs = super::support::correspondences_at(model, &l.cam_from_model, scene, p);
     (l.support - OVERRUN_WEIGHT * super::support::overrun(&pairs, scene)).max(0.0)
 }
 
 /// How much a metre of scene line running on past a model edge's end counts against a report,
 /// in metres matched.
+///
 /// Chosen on tuning seeds of `widgets.toml` (`marvin eval locate --scenes 50`, located and
 /// false reports on seeds from 1 / 2001 / 3001): ranked by 3D length times the image's share
 /// as before, 0.957 / 0.937 / 0.963 and 2 / 6 / 2; judged again as objects are kept (weight 0),
