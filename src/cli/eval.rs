@@ -42,7 +42,8 @@ pub enum EvalTarget {
     /// `first_attempt_success_rate` (of the first pick at each object, which object from the
     /// truth afterwards, the share placed), `attempts_per_object` (picks per object placed),
     /// `wrong_model_picks` (picks at a pose where no object of the model chosen lay within
-    /// 20 mm), `cycles_mean`, `cycle_s_mean` (wall), `vision_cycle_ms_median` (front end and
+    /// 20 mm) and `wrong_picks` (each: seed, cycle, model, support, image support, outcome,
+    /// the nearest object of its model and of any model), `cycles_mean`, `cycle_s_mean` (wall), `vision_cycle_ms_median` (front end and
     /// matcher), `failures` (by kind, every attempt, those later retried included),
     /// `stopped_by`, `calibration_error`, `unsettled_scenes`.
     Run {

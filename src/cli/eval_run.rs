@@ -29,6 +29,8 @@ pub struct JudgedPick {
     pub image_support: f64,
     /// The nearest object of the model chosen: its id and how far from vision's pose, mm.
     pub nearest: Option<(u32, f64)>,
+    /// The nearest object of any model: its id, model and how far, mm (what a wrong pick went for).
+    pub nearest_any: Option<(u32, String, f64)>,
 }
 
 impl JudgedPick {
@@ -68,15 +70,24 @@ const TARGET_THERE_M: f64 = 0.02;
 
 /// The nearest true object of `model` to vision's pose of it: its id and how far, mm.
 fn nearest_true(truth: &TruthReply, model: &str, cam_from_model: &Isometry3<f64>) -> Option<(u32, f64)> {
+    nearest_object(truth, Some(model), cam_from_model).map(|(id, _, mm)| (id, mm))
+}
+
+/// The nearest true object (of `model`, or of any model) to vision's pose: id, model, mm.
+fn nearest_object(
+    truth: &TruthReply,
+    model: Option<&str>,
+    cam_from_model: &Isometry3<f64>,
+) -> Option<(u32, String, f64)> {
     let world_from_cam = truth.world_from_cam.to_isometry("world_from_cam").ok()?;
     let p = world_from_cam * cam_from_model;
     truth
         .objects
         .iter()
-        .filter(|o| o.model == model)
-        .filter_map(|o| Some((o.id, o.world_from_model.to_isometry("world_from_model").ok()?)))
-        .map(|(id, w)| (id, (w.translation.vector - p.translation.vector).norm() * 1e3))
-        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .filter(|o| model.is_none_or(|m| o.model == m))
+        .filter_map(|o| Some((o, o.world_from_model.to_isometry("world_from_model").ok()?)))
+        .map(|(o, w)| (o.id, o.model.clone(), (w.translation.vector - p.translation.vector).norm() * 1e3))
+        .min_by(|a, b| a.2.total_cmp(&b.2))
 }
 
 /// How far a camera pose is from the true one: mm and degrees.
@@ -164,6 +175,7 @@ impl Watcher for Judge<'_> {
             support_fraction: chosen.support_fraction,
             image_support: chosen.image_support,
             nearest: nearest_true(&now, &chosen.model, &chosen.cam_from_model),
+            nearest_any: nearest_object(&now, None, &chosen.cam_from_model),
         });
         Ok(())
     }
@@ -213,7 +225,9 @@ pub fn eval(world: &Path, scenes: u64, seed: u64, json: bool) -> anyhow::Result<
             (on_table + truth.on_table_at_start, cleared + truth.in_bin_at_end, picks + p, placed + ok);
         wrong.extend(truth.wrong_picks().map(|p| {
             json!({ "seed": s, "cycle": p.cycle + 1, "model": p.model, "support": p.support_fraction,
-                    "image_support": p.image_support, "nearest_of_model_mm": p.nearest.map(|(_, mm)| mm) })
+                    "image_support": p.image_support,
+                    "outcome": r.cycles.get(p.cycle).map(outcome_name), "nearest_of_model_mm": p.nearest.map(|(_, mm)| mm),
+                    "nearest_object": p.nearest_any.as_ref().map(|(id, model, mm)| json!({ "id": id, "model": model, "mm": mm })) })
         }));
         unsettled += usize::from(truth.unsettled.is_some());
         let tried = r.cycles.iter().filter(|c| c.chosen.is_some());
@@ -276,6 +290,7 @@ mod tests {
             support_fraction: 0.5,
             image_support: 0.5,
             nearest,
+            nearest_any: None,
         };
         let picks =
             vec![pick(Some((3, 1.0))), pick(None), pick(Some((3, 2.0))), pick(Some((5, 0.5))), pick(Some((5, 25.0)))];

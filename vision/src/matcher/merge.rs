@@ -1,6 +1,7 @@
 //! All models at once: each model's matcher in parallel, then the merge that keeps the best
 //! supported of reports that share lines or space, the second look (objects with too few 3D
-//! lines) and the third (candidates partly hidden by objects already located).
+//! lines), the third (candidates partly hidden by objects already located), and last each
+//! report set against other models read from its lines ([`rival_reading`]).
 
 use super::hypotheses::scene_pairs;
 use super::model::{Located, MatchParams, MatcherModel, Seg};
@@ -37,8 +38,79 @@ pub fn locate_all(
         let third = hidden_in_part(models, &searches, (&kept, &claimed), p, ev);
         resolve(models, (scene, p), third, &mut kept, &mut claimed, image);
     }
+    if let Some(ev) = image.filter(|ev| !ev.lines.is_empty()) {
+        for i in 0..kept.len() {
+            if let Some(rival) = rival_reading(models, scene, p, ev, &kept, i) {
+                kept[i] = rival;
+            }
+        }
+    }
     kept
 }
+
+/// A reading of another model that explains report `i`'s object better than it does: sought
+/// by the second look from that report's 3D lines (the lines of the other reports still
+/// claimed), it must fill the report's space, run along edgels for all but
+/// [`RIVAL_MIN_IMAGE_SUPPORT`] of its camera-facing wireframe with nothing excused as hidden,
+/// and explain more of the image than the report: a larger share of its wireframe along edgels
+/// and more wireframe in all (px).
+///
+/// Why: an L-bracket is a U-channel with an arm missing, and where the channel's third arm has
+/// its long edges along the rasters stereo gives it no 3D line; the bracket then explains the
+/// 3D lines as well as the channel does (better: the channel's pose from the second look rests
+/// on fewer of them), and the first look, which sees only 3D lines, reports the bracket. The
+/// image shows the arm: the bracket's wireframe runs along 72% of edgels, the channel's 100%
+/// and a third more of it (seed 13, a lone channel, picked as a bracket).
+fn rival_reading(
+    models: &[MatcherModel],
+    scene: &[Seg],
+    p: &MatchParams,
+    ev: &ImageEvidence,
+    kept: &[Located],
+    i: usize,
+) -> Option<Located> {
+    let r = &kept[i];
+    let own = models.iter().find(|m| m.name == r.model)?;
+    let others: Vec<Located> = kept.iter().enumerate().filter(|(k, _)| *k != i).map(|(_, l)| l.clone()).collect();
+    let mut claimed = vec![false; scene.len()];
+    for j in others.iter().flat_map(|l| &l.scene_lines) {
+        claimed[*j] = true;
+    }
+    for &j in &r.scene_lines {
+        claimed[j] = false;
+    }
+    let (solids, explained) = (solids_of(models, &others), explained_by(models, &others, ev));
+    let explains =
+        |m: &MatcherModel, l: &Located| l.image_support * super::verify::facing_length_px(m, &l.cam_from_model, ev.cam);
+    let own_explains = explains(own, r);
+    models
+        .iter()
+        .filter(|m| m.name != r.model)
+        .flat_map(|m| {
+            super::second_look::locate(m, scene, &claimed, p, ev, (&solids, &explained))
+                .into_iter()
+                .map(move |l| (m, l))
+        })
+        .filter(|(m, l)| {
+            let shared = space_shared(m, &l.cam_from_model, own, &r.cam_from_model).max(space_shared(
+                own,
+                &r.cam_from_model,
+                m,
+                &l.cam_from_model,
+            ));
+            shared > MAX_SPACE_SHARED
+                && l.image_support > r.image_support
+                && super::verify::image_support_at_least(m, &l.cam_from_model, ev, RIVAL_MIN_IMAGE_SUPPORT).is_some()
+                && explains(m, l) > own_explains
+                && admissible(models, l, &others, &claimed)
+        })
+        .max_by(|a, b| explains(a.0, &a.1).total_cmp(&explains(b.0, &b.1)))
+        .map(|(_, l)| l)
+}
+
+/// A rival reading must run along edgels for this share of its camera-facing wireframe, none
+/// of it excused as hidden (the second look's bar for a pose on one 3D line).
+const RIVAL_MIN_IMAGE_SUPPORT: f64 = 0.85;
 
 /// The image edges of the objects located.
 pub(crate) fn explained_by(models: &[MatcherModel], kept: &[Located], ev: &ImageEvidence) -> Explained {
@@ -252,6 +324,52 @@ mod tests {
         let names: Vec<&str> = found.iter().map(|l| l.model.as_str()).collect();
         assert_eq!(names, ["u_channel"], "{names:?}");
         assert!((found[0].cam_from_model.translation.vector - pose.translation.vector).norm() < 1e-3);
+    }
+
+    /// A U-channel whose 3D lines stereo gave only round one corner (its web as far as the
+    /// middle, the arm at that end, the edge between them: an L-bracket's corner too, and the
+    /// channel's lines too few for the first look) while the image shows all of it: the
+    /// bracket fits the 3D lines and is reported first, and the channel, read again from those
+    /// lines by the second look, explains the image better and stands instead.
+    #[test]
+    fn a_channel_the_image_shows_whole_is_not_taken_for_a_bracket() {
+        let (bracket, channel) =
+            (crate::matcher::fixtures::model("l_bracket"), crate::matcher::fixtures::model("u_channel"));
+        let cam = crate::matcher::fixtures::camera_at(nalgebra::Point3::new(0.0, -0.6, 0.6));
+        let world_from_model = Isometry3::from_parts(
+            nalgebra::Translation3::new(0.01, -0.02, 0.0125),
+            nalgebra::UnitQuaternion::from_euler_angles(0.0, 0.0, 0.3),
+        );
+        let pose = cam.cam_from_world() * world_from_model;
+        let top = channel.lines.iter().map(|l| l.a.z.max(l.b.z)).fold(f64::MIN, f64::max);
+        let near = |a: f64, b: f64| (a - b).abs() < 1e-6;
+        let corner = |l: &&Seg| {
+            let on_top = near(l.a.z, top) && near(l.b.z, top);
+            let web = on_top && near(l.a.y, -0.025) && near(l.b.y, -0.025);
+            let arm = on_top && near(l.a.x, -0.04) && near(l.b.x, -0.04);
+            let upright = near(l.a.x, -0.04) && near(l.b.x, -0.04) && near(l.a.y, -0.025) && near(l.b.y, -0.025);
+            web || arm || upright
+        };
+        // The web's line only as far as the middle.
+        let clipped = |l: &Seg| {
+            let (a, b) = if l.a.x < l.b.x { (l.a, l.b) } else { (l.b, l.a) };
+            if near(a.y, b.y) && near(a.z, b.z) && b.x > 0.0 {
+                Seg::new(a, nalgebra::Point3::new(0.0, b.y, b.z))
+            } else {
+                *l
+            }
+        };
+        let scene: Vec<Seg> = channel.lines.iter().filter(corner).map(|l| clipped(l).transformed(&pose)).collect();
+        assert_eq!(scene.len(), 3);
+        let (edges, lines) = crate::matcher::verify::drawn::model_edges(&channel, &pose, &cam);
+        let ev = ImageEvidence::new(&cam, &edges, lines);
+        let p = MatchParams::default();
+        let bracket_alone = locate_all(std::slice::from_ref(&bracket), &scene, &p, Some(&ev));
+        assert_eq!(bracket_alone.len(), 1, "the bracket fits the 3D lines");
+        let found = locate_all(&[bracket, channel], &scene, &p, Some(&ev));
+        let names: Vec<&str> = found.iter().map(|l| l.model.as_str()).collect();
+        assert_eq!(names, ["u_channel"], "{names:?}");
+        assert!((found[0].cam_from_model.translation.vector - pose.translation.vector).norm() < 2e-3);
     }
 
     /// Solids may not share space: the same block a millimetre off shares nearly all of it, a
