@@ -147,6 +147,24 @@ pub fn locate(
     ev: &ImageEvidence,
     (solids, explained): (&[Solid], &Explained),
 ) -> Vec<Located> {
+    locate_refining(model, scene, claimed, p, ev, (solids, explained), (MIN_IMAGE_SUPPORT_TO_REFINE, None))
+}
+
+/// [`locate`], refining only the poses that already run along edgels for `min_to_refine` of
+/// their camera-facing wireframe (a search that will ask more of the result may ask more of
+/// the start, and refines fewer) and, if `within` is given, whose model's centre lies in that
+/// sphere (`cam` frame).
+pub(crate) fn locate_refining(
+    model: &MatcherModel,
+    scene: &[Seg],
+    claimed: &[bool],
+    p: &MatchParams,
+    ev: &ImageEvidence,
+    (solids, explained): (&[Solid], &Explained),
+    (min_to_refine, within): (f64, Option<(Point3<f64>, f64)>),
+) -> Vec<Located> {
+    let centre = model.bounding_sphere().0;
+    let inside = |pose: &Isometry3<f64>| within.is_none_or(|(c, r)| (pose * centre - c).norm() <= r);
     let hiding: Vec<&Solid> = solids.iter().collect();
     let corners = corners(model);
     let mut best: Vec<(f64, Isometry3<f64>)> = Vec::new();
@@ -176,11 +194,13 @@ pub fn locate(
                 if s.len > ml.len + 0.012 {
                     continue;
                 }
-                for pose in poses(ml, c, s, &u_out, l).into_iter().filter(|pose| runs_along(pose, c, l, ev)) {
+                for pose in
+                    poses(ml, c, s, &u_out, l).into_iter().filter(|pose| inside(pose) && runs_along(pose, c, l, ev))
+                {
                     // The pose is only as good as one short 3D line's direction: refined on
                     // the image (and that line) before the strict image check, if it is near
                     // enough to start from.
-                    if image_support_at_least(model, &pose, ev, MIN_IMAGE_SUPPORT_TO_REFINE).is_none() {
+                    if image_support_at_least(model, &pose, ev, min_to_refine).is_none() {
                         continue;
                     }
                     let Some(pose) = refine_in_image(model, &pose, scene, &[(c.line, j)], ev, SEARCH_PX) else {

@@ -16,7 +16,7 @@ pub struct ImageEvidence<'a> {
     pub edges: &'a EdgeMap,
     pub lines: Vec<ImageLine>,
     /// The edgels spread into an orientation mask, so that each sample is one look-up.
-    mask: EdgeMask,
+    mask: std::sync::Arc<EdgeMask>,
 }
 
 /// A straight line of the left image, in pixels, with the plane through the camera centre that
@@ -33,7 +33,12 @@ const MIN_IMAGE_LINE_PX: f64 = 20.0;
 
 impl<'a> ImageEvidence<'a> {
     pub fn new(cam: &'a PinholeCamera, edges: &'a EdgeMap, lines: Vec<ImageLine>) -> ImageEvidence<'a> {
-        ImageEvidence { cam, edges, lines, mask: EdgeMask::of(edges) }
+        ImageEvidence { cam, edges, lines, mask: std::sync::Arc::new(EdgeMask::of(edges)) }
+    }
+
+    /// The same edgels with other image lines.
+    pub(crate) fn with_lines(&self, lines: Vec<ImageLine>) -> ImageEvidence<'a> {
+        ImageEvidence { cam: self.cam, edges: self.edges, lines, mask: self.mask.clone() }
     }
 
     /// The evidence of one front-end run on the left camera `cam`.
@@ -211,6 +216,18 @@ impl Explained {
             let t = (q - a).dot(d).clamp(0.0, (b - a).norm());
             (q - (a + d * t)).norm() <= EXPLAINED_PX
         })
+    }
+
+    /// The share of image line `l` (by length) that runs along the edges.
+    pub fn share_of_line(&self, l: &ImageLine) -> f64 {
+        let len = (l.b - l.a).norm();
+        if len < 2.0 * STEP_PX {
+            return 0.0;
+        }
+        let (steps, dir) = ((len / STEP_PX) as usize, (l.b - l.a) / len);
+        let explained =
+            (1..steps).filter(|&k| self.explains(&(l.a + (l.b - l.a) * (k as f64 / steps as f64)), &dir)).count();
+        explained as f64 / (steps - 1) as f64
     }
 
     /// The share of `model`'s camera-facing wireframe at `pose` (by image length) that runs
