@@ -149,9 +149,14 @@ pub fn run(
             cycles.push(cycle);
             return Ok(RunReport { cycles, stop: Stop::NothingLocated });
         }
-        let resting = resting(&cycle.located, library, cam_from_base, table_top);
+        let (resting, may_rest) = (
+            resting(&cycle.located, library, cam_from_base, table_top, RESTING_M),
+            resting(&cycle.located, library, cam_from_base, table_top, MAY_REST_M),
+        );
         let order = pick_order(&cycle.located, cam_from_base, &bin_boxes, &failed);
-        let order: Vec<usize> = order.into_iter().filter(|&i| resting[i]).collect();
+        // Parts that rest go first; those that only may rest wait until nothing else is left.
+        let mut order: Vec<usize> = order.into_iter().filter(|&i| may_rest[i]).collect();
+        order.sort_by_key(|&i| !resting[i]);
         for i in order {
             let spec = pick_spec(&cycle.located, i, &bin);
             match client.pick(PickSpec { plan_only: true, ..spec.clone() }) {
@@ -235,7 +240,7 @@ fn pick_order(
 const MIN_LINES_TO_GO_FIRST: usize = 2;
 
 /// Whether each located part could lie where vision puts it: its lowest point on the table
-/// (within [`RESTING_M`]), or over the table and on another part located (its lowest point no
+/// (within `within`, metres), or over the table and on another part located (its lowest point no
 /// higher than the other's highest, their footprints overlapping). A reading in mid-air or in
 /// the table is a misreading, and a pick there would go for nothing. Without the table's height
 /// every part may rest.
@@ -244,6 +249,7 @@ fn resting(
     library: &mesh::Library,
     cam_from_base: &Isometry3<f64>,
     table_top: Option<f64>,
+    within: f64,
 ) -> Vec<bool> {
     let Some(top) = table_top else { return vec![true; located.len()] };
     let base_from_cam = cam_from_base.inverse();
@@ -252,15 +258,13 @@ fn resting(
     (0..located.len())
         .map(|i| {
             let Some(e) = &extent[i] else { return true };
-            if e.lowest < top - RESTING_M {
+            if e.lowest < top - within {
                 return false;
             }
-            e.lowest <= top + RESTING_M
+            e.lowest <= top + within
                 || extent.iter().enumerate().any(|(j, other)| {
                     other.as_ref().is_some_and(|o| {
-                        j != i
-                            && o.highest >= e.lowest - RESTING_M
-                            && (e.centre - o.centre).norm() < e.radius + o.radius
+                        j != i && o.highest >= e.lowest - within && (e.centre - o.centre).norm() < e.radius + o.radius
                     })
                 })
         })
@@ -292,6 +296,10 @@ impl Extent {
 /// wedge read 20 mm from where it lay (seed 3005, picked for nothing at 8 mm) and a U-channel
 /// read as an L-bracket.
 const RESTING_M: f64 = 0.004;
+/// A part within this (metres) but not within [`RESTING_M`] may rest: it is tried only when no
+/// part that rests is left. Skipped outright, such readings left a wedge on the table of
+/// reporting seed 10002 (`tests/run.rs`) and stopped 3 runs in 20 on fresh seeds.
+const MAY_REST_M: f64 = 0.008;
 
 /// A located part is taken to lie in a bin when its origin is within this of the bin's
 /// footprint, anywhere above its floor.
@@ -396,14 +404,16 @@ mod tests {
         // The base frame is the camera's here; the table's top at height 0.
         let base = Isometry3::identity();
         let on_table = at(0.0, -lo);
-        let judged = |parts: &[Located]| resting(parts, &library, &base, Some(0.0));
+        let judged = |parts: &[Located]| resting(parts, &library, &base, Some(0.0), RESTING_M);
         assert_eq!(judged(std::slice::from_ref(&on_table)), [true]);
         assert_eq!(judged(&[at(0.0, -lo + 0.03)]), [false], "in mid-air");
         assert_eq!(judged(&[at(0.0, -lo - 0.02)]), [false], "in the table");
         let stacked = at(0.01, (hi - lo) - lo);
         assert_eq!(judged(&[on_table.clone(), stacked.clone()]), [true, true]);
         assert_eq!(judged(&[at(0.5, -lo), stacked]), [true, false], "over nothing");
-        assert_eq!(resting(&[at(0.0, 0.5)], &library, &base, None), [true], "no table known");
+        assert_eq!(judged(&[at(0.0, -lo + 0.006)]), [false], "6 mm up");
+        assert_eq!(resting(&[at(0.0, -lo + 0.006)], &library, &base, Some(0.0), MAY_REST_M), [true], "may rest");
+        assert_eq!(resting(&[at(0.0, 0.5)], &library, &base, None, RESTING_M), [true], "no table known");
     }
 
     /// The highest part goes first, of parts as high the best supported; but a part read from
