@@ -133,6 +133,18 @@ struct HeldTool {
 /// sets 2 for picks, restored when the tool is stowed).
 const TOOL_PGS_ITERATIONS: usize = 8;
 
+/// The world's time step is divided by this while a tool is held. Friction in rapier is solved
+/// on velocities, and a free body's pose is integrated along its velocity (a tangent) while the
+/// arm's links follow their joints' arcs exactly, so a held body drifts from the jaws by about
+/// `omega^2 r dt / 2` a second (the shoulder alone turning the flag at 0.1-0.4 rad/s 0.33 m from
+/// its axis: 0.03-0.11 mm/s outwards, as the formula says; halving dt halved it). Still, at the
+/// world's 1/240 s, the plate held still also crept 2 um/s; at 1/480 s, not at all (in the
+/// pose tried, over 60 s). Over 10 calibrations
+/// (`marvin eval calibrate worlds/widgets.toml --trials 10`): the flag's creep 1.42 -> 0.79 mm
+/// (median), the camera 0.61 -> 0.35 mm and 0.092 -> 0.040 deg from the truth, for 40% more
+/// time; a quarter step crept 0.37 mm on seed 1 for three times the time.
+const TOOL_TIMESTEP_DIVISOR: f64 = 2.0;
+
 /// The tools an operator can hand in: the calibration flag (`urdf/flag_tool.urdf`, next to the
 /// arm's URDF; the library model `flag`).
 const TOOLS: [(&str, &str); 1] = [("flag", "flag_tool.urdf")];
@@ -544,8 +556,11 @@ impl<'a> SimCell<'a> {
         let at = self.pick.arm.world_from_gripper(&self.pick.cell) * gripper_from_tool;
         // Rapier's friction on the finger links lets a held plate creep under its weight; more
         // Gauss-Seidel passes while the tool is held stop it turning in the jaws (12 moves: 0.77 ->
-        // 0.06 deg) though not sliding along them (about 0.08 mm a move either way).
+        // 0.06 deg) though not sliding along them (about 0.08 mm a move either way); a shorter
+        // time step halves that (see TOOL_TIMESTEP_DIVISOR).
         self.pick.cell.world.integration_parameters.num_internal_pgs_iterations = TOOL_PGS_ITERATIONS;
+        self.pick.cell.world.integration_parameters.dt =
+            (self.scn.world.physics.timestep_s / TOOL_TIMESTEP_DIVISOR) as f32;
         let body = self.pick.cell.add_tool(model, &at);
         sim::arm::hold_without_ccd(&mut self.pick.cell, body);
         self.pick.grip(0.0);
@@ -561,6 +576,7 @@ impl<'a> SimCell<'a> {
         self.pick.grip(width + robot::pick::OPEN_MARGIN_M);
         self.pick.cell.remove(tool.body);
         sim::arm::configure_for_grasping(&mut self.pick.cell);
+        self.pick.cell.world.integration_parameters.dt = self.scn.world.physics.timestep_s as f32;
         Ok(ToolReply { holding: None, jaw_mm: self.pick.arm.opening(&self.pick.cell) * 1e3 })
     }
 
