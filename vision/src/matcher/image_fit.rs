@@ -1,4 +1,5 @@
-//! Pose refinement against the left image and the 3D lines together: each camera-facing model
+//! Pose refinement against the left image and the 3D lines together (or against both images
+//! of the pair, [`refine_in_views`]): each camera-facing model
 //! edge, sampled every few pixels, is pulled across its image onto the nearest edgel that runs
 //! along it, and each supporting 3D line's ends onto their model line, by damped Gauss-Newton
 //! on the six pose parameters.

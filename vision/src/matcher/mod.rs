@@ -32,7 +32,8 @@
 //! - [`hypotheses`]: poses from congruent scene and focus pairs, scored by support.
 //! - [`ranking`]: the best hypotheses refined, ranked with the image evidence.
 //! - [`verify`]: a located model checked against the edgels of the left image.
-//! - [`image_fit`]: pose refinement on the left image's edgels and the 3D lines together.
+//! - [`image_fit`]: pose refinement on the left image's edgels and the 3D lines together, or on
+//!   the edgels of both images at once (the calibration flag's stereo fit).
 //! - [`search`]: one model's virtual matcher, instance after instance.
 //! - [`occlusion`]: located solids (and a model's own bulk) hiding parts of a wireframe.
 //! - [`second_look`]: objects with too few 3D lines, from one 3D line and an image line.
