@@ -173,20 +173,35 @@ pub fn refine_in_image(
     ev: &ImageEvidence,
     search: f64,
 ) -> Option<Isometry3<f64>> {
-    let mut pose = *pose;
-    for _ in 0..ITERATIONS {
+    let rows_at = |pose: &Isometry3<f64>| {
         let mut rows = Rows::new();
-        image_rows(model, &pose, ev, &Isometry3::identity(), search, &|_| true, &mut rows);
+        image_rows(model, pose, ev, &Isometry3::identity(), search, &|_| true, &mut rows);
         if rows.count < 12 {
             return None;
         }
-        line_rows(model, &pose, scene, pairs, ev.cam.fx, &mut rows);
+        line_rows(model, pose, scene, pairs, ev.cam.fx, &mut rows);
+        Some(rows)
+    };
+    gauss_newton(pose, rows_at, (1e-5, 1e-6))
+}
+
+/// Damped Gauss-Newton from `pose` on the rows `rows_at` gathers at each step (`None`: too few
+/// to fit to), until a step turns less than `done.0` radians and shifts less than `done.1`
+/// metres, or [`ITERATIONS`] steps.
+fn gauss_newton(
+    pose: &Isometry3<f64>,
+    rows_at: impl Fn(&Isometry3<f64>) -> Option<Rows>,
+    done: (f64, f64),
+) -> Option<Isometry3<f64>> {
+    let mut pose = *pose;
+    for _ in 0..ITERATIONS {
+        let rows = rows_at(&pose)?;
         // A little damping keeps directions the evidence leaves loose where they are.
         let damping = 1e-6 * rows.normal.trace().max(1e-12);
         let delta = (rows.normal + Matrix6::identity() * damping).cholesky()?.solve(&rows.rhs);
         let (omega, tau) = (Vector3::new(delta[0], delta[1], delta[2]), Vector3::new(delta[3], delta[4], delta[5]));
         pose = Isometry3::from_parts(Translation3::from(tau), UnitQuaternion::from_scaled_axis(omega)) * pose;
-        if omega.norm() < 1e-5 && tau.norm() < 1e-6 {
+        if omega.norm() < done.0 && tau.norm() < done.1 {
             break;
         }
     }
@@ -211,24 +226,14 @@ pub fn refine_in_views(
     search: f64,
     fitted: &dyn Fn(usize) -> bool,
 ) -> Option<Isometry3<f64>> {
-    let mut pose = *pose;
-    for _ in 0..ITERATIONS {
+    let rows_at = |pose: &Isometry3<f64>| {
         let mut rows = Rows::new();
         for v in views {
-            image_rows(model, &pose, v.ev, &v.cam_from_left, search, fitted, &mut rows);
+            image_rows(model, pose, v.ev, &v.cam_from_left, search, fitted, &mut rows);
         }
-        if rows.count < 12 * views.len() {
-            return None;
-        }
-        let damping = 1e-6 * rows.normal.trace().max(1e-12);
-        let delta = (rows.normal + Matrix6::identity() * damping).cholesky()?.solve(&rows.rhs);
-        let (omega, tau) = (Vector3::new(delta[0], delta[1], delta[2]), Vector3::new(delta[3], delta[4], delta[5]));
-        pose = Isometry3::from_parts(Translation3::from(tau), UnitQuaternion::from_scaled_axis(omega)) * pose;
-        if omega.norm() < 1e-6 && tau.norm() < 1e-7 {
-            break;
-        }
-    }
-    Some(pose)
+        (rows.count >= 12 * views.len()).then_some(rows)
+    };
+    gauss_newton(pose, rows_at, (1e-6, 1e-7))
 }
 
 #[cfg(test)]
