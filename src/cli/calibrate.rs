@@ -42,6 +42,12 @@ impl Truth {
         let (a, b) = (self.flag_in_gripper.first()?, self.flag_in_gripper.last()?);
         Some((a.translation.vector - b.translation.vector).norm() * 1e3)
     }
+
+    /// How far the flag turned in the jaws between the first and last sighting, degrees.
+    pub fn flag_turn_deg(&self) -> Option<f64> {
+        let (a, b) = (self.flag_in_gripper.first()?, self.flag_in_gripper.last()?);
+        Some(a.rotation.angle_to(&b.rotation).to_degrees())
+    }
 }
 
 /// A server for one calibration: the one at `connect`, or one started here on loopback (for
@@ -178,6 +184,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
             });
             doc["error"] = json!({ "translation_mm": mm, "rotation_deg": deg });
             doc["flag_creep_mm"] = json!(truth.flag_creep_mm());
+            doc["flag_turn_deg"] = json!(truth.flag_turn_deg());
         }
         return emit(&doc.to_string());
     }
@@ -193,8 +200,10 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
     if let Some((mm, deg)) = error {
         emit(&format!("against the simulation's truth: {mm:.3} mm, {deg:.4} deg"))?;
     }
-    if let Some(creep) = truth.flag_creep_mm() {
-        emit(&format!("the flag moved {creep:.3} mm in the jaws between the first and last sighting"))?;
+    if let (Some(creep), Some(turn)) = (truth.flag_creep_mm(), truth.flag_turn_deg()) {
+        emit(&format!(
+            "the flag moved {creep:.3} mm and turned {turn:.3} deg in the jaws between the first and last sighting"
+        ))?;
     }
     emit(&format!("wrote {}", args.out.display()))
 }
@@ -223,7 +232,7 @@ fn record(
 /// `marvin eval calibrate`: seeded calibrations, each on its own scene and poses.
 pub fn eval(world: &Path, trials: u64, seed: u64, poses: usize, json: bool) -> anyhow::Result<()> {
     let scn = sim::Scenario::load(world)?;
-    let (mut t_err, mut r_err, mut creep) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut t_err, mut r_err, mut creep, mut turn) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let (mut used, mut total, mut failed, mut unsettled) = (0usize, 0usize, Vec::new(), 0usize);
     let progress = super::output::Progress::new(trials, json);
     for k in 0..trials {
@@ -238,6 +247,7 @@ pub fn eval(world: &Path, trials: u64, seed: u64, poses: usize, json: bool) -> a
                 t_err.push(mm);
                 r_err.push(deg);
                 creep.extend(truth.flag_creep_mm());
+                turn.extend(truth.flag_turn_deg());
                 unsettled += usize::from(truth.unsettled.is_some());
                 used += c.solution.used.iter().filter(|u| **u).count();
                 total += c.poses.len();
@@ -263,6 +273,8 @@ pub fn eval(world: &Path, trials: u64, seed: u64, poses: usize, json: bool) -> a
         "sightings_used_fraction": used as f64 / total.max(1) as f64,
         "flag_creep_mm_max": creep.iter().copied().fold(0.0, f64::max),
         "flag_creep_mm_median": q(&creep, 0.5),
+        "flag_turn_deg_max": turn.iter().copied().fold(0.0, f64::max),
+        "flag_turn_deg_median": q(&turn, 0.5),
         "failed": failed,
         "unsettled_scenes": unsettled,
     });

@@ -62,7 +62,8 @@ pub enum EvalTarget {
     /// JSON keys: `translation_err_mm_median`, `_p90`, `rotation_err_deg_median`, `_p90` (the
     /// solved `cam_from_base` against the true one), `sightings_used_fraction` (poses whose
     /// sighting the solve used), `flag_creep_mm_max`, `_median` (how far the flag moved in the
-    /// jaws between the first and last sighting, from the physics), `failed`, `unsettled_scenes`.
+    /// jaws between the first and last sighting, from the physics), `flag_turn_deg_max`,
+    /// `_median` (how far it turned), `failed`, `unsettled_scenes`.
     Calibrate {
         world: PathBuf,
         #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u64).range(1..=super::args::MAX_COUNT))]
