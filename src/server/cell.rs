@@ -140,9 +140,10 @@ const TOOL_PGS_ITERATIONS: usize = 8;
 /// its axis: 0.03-0.11 mm/s outwards, as the formula says; halving dt halved it). Still, at the
 /// world's 1/240 s, the plate held still also crept 2 um/s; at 1/480 s, not at all (in the
 /// pose tried, over 60 s). Over 10 calibrations
-/// (`marvin eval calibrate worlds/widgets.toml --trials 10`): the flag's creep 1.42 -> 0.79 mm
-/// (median), the camera 0.61 -> 0.35 mm and 0.092 -> 0.040 deg from the truth, for 40% more
-/// time; a quarter step crept 0.37 mm on seed 1 for three times the time.
+/// (`marvin eval calibrate worlds/widgets.toml --trials 10`): the flag's creep 1.42 -> 0.80 mm
+/// (median), the camera 0.61 -> 0.27 mm and 0.092 -> 0.052 deg from the truth, for 40% more
+/// time; a quarter step crept 0.51 mm on the reporting seeds for three times the time, and the
+/// camera came out no better there.
 const TOOL_TIMESTEP_DIVISOR: f64 = 2.0;
 
 /// The tools an operator can hand in: the calibration flag (`urdf/flag_tool.urdf`, next to the
