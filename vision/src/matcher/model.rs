@@ -34,7 +34,7 @@ pub struct MatcherModel {
     pub lines: Vec<Seg>,
     /// `lines[first_marking..]` are the markings (a pattern drawn on a face), the others the
     /// wireframe's edges.
-    pub first_marking: usize,
+    pub(crate) first_marking: usize,
     /// Outward normals of the faces meeting along each line: the line can be seen only from
     /// where one of them faces the camera.
     pub faces: Vec<Vec<Vector3<f64>>>,
@@ -144,13 +144,13 @@ impl MatcherModel {
         (pose * self.sphere.0, self.sphere.1 + p.support_distance)
     }
 
-    /// Whether line `k` has a face turned towards a camera at the origin, with the model at
-    /// `pose` (lines of no face always do): only such lines can be seen.
     /// Whether line `k` is a marking (drawn on a face, not an edge of the solid).
     pub fn is_marking(&self, k: usize) -> bool {
         k >= self.first_marking
     }
 
+    /// Whether line `k` has a face turned towards a camera at the origin, with the model at
+    /// `pose` (lines of no face always do): only such lines can be seen.
     pub fn faces_camera(&self, k: usize, pose: &Isometry3<f64>) -> bool {
         let (line, faces) = (&self.lines[k], &self.faces[k]);
         let mid = pose * nalgebra::center(&line.a, &line.b);
