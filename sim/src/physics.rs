@@ -61,6 +61,9 @@ pub struct SettleReport {
     pub drops: u32,
 }
 
+/// The natural frequency of contacts between moving bodies (Hz; rapier's default is 30).
+pub const CONTACT_FREQUENCY_HZ: f32 = 200.0;
+
 impl Cell {
     pub fn new(spec: &PhysicsSpec, statics: &[StaticBox]) -> Cell {
         let mut world = PhysicsWorld::new();
@@ -73,7 +76,7 @@ impl Cell {
         ip.normalized_allowed_linear_error = 2e-4;
         ip.num_solver_iterations = 8;
         ip.num_internal_stabilization_iterations = 4;
-        ip.contact_softness.natural_frequency = 200.0;
+        ip.contact_softness.natural_frequency = CONTACT_FREQUENCY_HZ;
         ip.static_contact_softness.natural_frequency = 400.0;
         ip.friction_model = FrictionModel::Coulomb;
         ip.contact_clustering = false;
@@ -116,6 +119,26 @@ impl Cell {
             ColliderBuilder::new(collision_shape(model)).density(0.0).friction(self.friction).restitution(0.05);
         let (handle, _) = self.world.insert(body, collider);
         handle
+    }
+
+    /// Fixes boxes to a body, each `(body_from_box, half_extents)` in metres: a tool's locating
+    /// features, which its model's shape does not have.
+    pub fn attach_boxes(&mut self, body: RigidBodyHandle, boxes: &[(Isometry3<f64>, Vector3<f64>)]) {
+        for (body_from_box, h) in boxes {
+            let h = convert::vector(h);
+            let collider = ColliderBuilder::cuboid(h.x, h.y, h.z)
+                .position(convert::pose(body_from_box))
+                .density(0.0)
+                .friction(self.friction);
+            let w = &mut self.world;
+            w.colliders.insert_with_parent(collider, body, &mut w.bodies);
+        }
+    }
+
+    /// Holds a body where it is (the operator's hand) or lets it go.
+    pub fn hold_in_place(&mut self, body: RigidBodyHandle, held: bool) {
+        let kind = if held { RigidBodyType::KinematicPositionBased } else { RigidBodyType::Dynamic };
+        self.world.bodies[body].set_body_type(kind, true);
     }
 
     /// Takes a body (and its collider) out of the world.

@@ -133,18 +133,20 @@ struct HeldTool {
 /// sets 2 for picks, restored when the tool is stowed).
 const TOOL_PGS_ITERATIONS: usize = 8;
 
-/// The world's time step is divided by this while a tool is held. Friction in rapier is solved
-/// on velocities, and a free body's pose is integrated along its velocity (a tangent) while the
-/// arm's links follow their joints' arcs exactly, so a held body drifts from the jaws by about
-/// `omega^2 r dt / 2` a second (the shoulder alone turning the flag at 0.1-0.4 rad/s 0.33 m from
-/// its axis: 0.03-0.11 mm/s outwards, as the formula says; halving dt halved it). Still, at the
-/// world's 1/240 s, the plate held still also crept 2 um/s; at 1/480 s, not at all (in the
-/// pose tried, over 60 s). Over 10 calibrations
-/// (`marvin eval calibrate worlds/widgets.toml --trials 10`): the flag's creep 1.42 -> 0.80 mm
-/// (median), the camera 0.61 -> 0.27 mm and 0.092 -> 0.052 deg from the truth, for 40% more
-/// time; a quarter step crept 0.51 mm on the reporting seeds for three times the time, and the
-/// camera came out no better there.
-const TOOL_TIMESTEP_DIVISOR: f64 = 2.0;
+/// The natural frequency of contacts (Hz) while a tool is held, instead of the world's
+/// (`sim::physics::CONTACT_FREQUENCY_HZ`). The flag is held by its locators in the pads' recesses
+/// (`urdf/flag_tool.urdf`), so what is left of its creep is the give of its contacts: it rocks
+/// on the pads and leans on the recesses' walls. Over 10 calibrations (`marvin eval calibrate
+/// worlds/widgets.toml --trials 10`, seeds 1-10): at the world's 200 Hz the flag moved 0.095 mm
+/// (median; 0.16 at most) and turned 0.21 deg between the first and last sighting; at 2000 Hz,
+/// 0.024 mm (0.060) and 0.039 deg. Halving the time step as well (at 1000 Hz) was no better,
+/// 0.039 mm, for twice the time. Held by friction alone it had crept 0.8-1.4 mm: rapier solves
+/// friction on velocities, so nothing brings a slipped body back.
+const TOOL_CONTACT_FREQUENCY_HZ: f32 = 2000.0;
+
+/// Seconds the tool is left to settle onto its locators' walls under its weight once the
+/// operator lets go, before the arm moves.
+const TOOL_SEAT_S: f64 = 0.15;
 
 /// The tools an operator can hand in: the calibration flag (`urdf/flag_tool.urdf`, next to the
 /// arm's URDF; the library model `flag`).
@@ -551,20 +553,25 @@ impl<'a> SimCell<'a> {
             .map_err(|e| internal(e.to_string()))?;
         let model =
             self.scn.library.models.get(name).ok_or_else(|| internal(format!("the library has no model `{name}`")))?;
-        let width = model.grasps.first().map_or(0.0, |g| g.opening);
+        let width = model.grasps.first().map_or(0.0, |g| g.opening).max(tool.locator_clearance());
         self.pick.grip(width + robot::pick::OPEN_MARGIN_M);
         let gripper_from_tool = tool.tool_from_gripper.inverse();
         let at = self.pick.arm.world_from_gripper(&self.pick.cell) * gripper_from_tool;
-        // Rapier's friction on the finger links lets a held plate creep under its weight; more
-        // Gauss-Seidel passes while the tool is held stop it turning in the jaws (12 moves: 0.77 ->
-        // 0.06 deg) though not sliding along them (about 0.08 mm a move either way); a shorter
-        // time step halves that (see TOOL_TIMESTEP_DIVISOR).
-        self.pick.cell.world.integration_parameters.num_internal_pgs_iterations = TOOL_PGS_ITERATIONS;
-        self.pick.cell.world.integration_parameters.dt =
-            (self.scn.world.physics.timestep_s / TOOL_TIMESTEP_DIVISOR) as f32;
+        // More Gauss-Seidel passes while the tool is held stop it turning in the jaws (12 moves,
+        // held by friction: 0.77 -> 0.06 deg); stiffer contacts keep its locators where they sit.
+        let ip = &mut self.pick.cell.world.integration_parameters;
+        ip.num_internal_pgs_iterations = TOOL_PGS_ITERATIONS;
+        ip.contact_softness.natural_frequency = TOOL_CONTACT_FREQUENCY_HZ;
         let body = self.pick.cell.add_tool(model, &at);
+        let locators: Vec<_> = tool.locators.iter().map(|b| (b.tool_from_box, b.half_extents)).collect();
+        self.pick.cell.attach_boxes(body, &locators);
         sim::arm::hold_without_ccd(&mut self.pick.cell, body);
+        // The operator holds the tool still while the jaws close on it, so that its locators
+        // meet the pads' recesses where they are.
+        self.pick.cell.hold_in_place(body, true);
         self.pick.grip(0.0);
+        self.pick.cell.hold_in_place(body, false);
+        self.pick.run_for(TOOL_SEAT_S);
         self.tool = Some(HeldTool { name: name.to_string(), body, gripper_from_tool, shape: collision_shape(model) });
         Ok(ToolReply { holding: Some(name.to_string()), jaw_mm: self.pick.arm.opening(&self.pick.cell) * 1e3 })
     }
@@ -577,7 +584,8 @@ impl<'a> SimCell<'a> {
         self.pick.grip(width + robot::pick::OPEN_MARGIN_M);
         self.pick.cell.remove(tool.body);
         sim::arm::configure_for_grasping(&mut self.pick.cell);
-        self.pick.cell.world.integration_parameters.dt = self.scn.world.physics.timestep_s as f32;
+        self.pick.cell.world.integration_parameters.contact_softness.natural_frequency =
+            sim::physics::CONTACT_FREQUENCY_HZ;
         Ok(ToolReply { holding: None, jaw_mm: self.pick.arm.opening(&self.pick.cell) * 1e3 })
     }
 
