@@ -85,6 +85,9 @@ pub struct PickCell<'a> {
     pub simulated_s: f64,
     /// The bin (index into the world's bins) a pick is judged against: the first unless told.
     pub bin: usize,
+    /// Picks the arm has carried out so far (the robot's own count, for where over the bin it
+    /// drops the next part).
+    pub released: usize,
 }
 
 impl<'a> PickCell<'a> {
@@ -103,7 +106,7 @@ impl<'a> PickCell<'a> {
             })
             .collect();
         let arm = SimArm::insert(&mut cell, &work.urdf, &work.world_from_base, &HOME, 0.0)?;
-        let mut pc = PickCell { scn, work, cell, arm, objects, simulated_s: 0.0, bin: 0 };
+        let mut pc = PickCell { scn, work, cell, arm, objects, simulated_s: 0.0, bin: 0, released: 0 };
         pc.run_for(HOLD_S);
         Ok(pc)
     }
@@ -153,7 +156,7 @@ impl<'a> PickCell<'a> {
             grasps,
             target,
             obstacles,
-            place: place_target(self.work, bin),
+            place: place_target(self.work, bin, self.released),
             start: self.arm.joints(&self.cell),
             seed,
         })
@@ -210,6 +213,7 @@ impl<'a> PickCell<'a> {
         out.grasp = Some(plan.grasp_index);
         out.grasp_width_mm = Some(plan.grasp.width * 1e3);
         self.execute(&plan, target, &mut out);
+        self.released += 1;
         if !out.placed {
             self.recover();
         }
@@ -430,11 +434,12 @@ pub fn static_obstacles(scn: &Scenario, work: &Workcell) -> Vec<Obstacle> {
 }
 
 /// The first bin's floor as a place target in the base frame.
-pub fn place_target(work: &Workcell, bin: &sim::world::BinSpec) -> PlaceTarget {
+pub fn place_target(work: &Workcell, bin: &sim::world::BinSpec, released: usize) -> PlaceTarget {
     let floor = Isometry3::translation(bin.centre_m[0], bin.centre_m[1], bin.wall_m);
     PlaceTarget {
         base_from_floor_centre: work.world_from_base.inverse() * floor,
         size_xy: [bin.size_m[0], bin.size_m[1]],
+        released,
     }
 }
 

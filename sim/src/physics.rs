@@ -121,17 +121,33 @@ impl Cell {
         handle
     }
 
-    /// Fixes boxes to a body, each `(body_from_box, half_extents)` in metres: a tool's locating
-    /// features, which its model's shape does not have.
-    pub fn attach_boxes(&mut self, body: RigidBodyHandle, boxes: &[(Isometry3<f64>, Vector3<f64>)]) {
-        for (body_from_box, h) in boxes {
-            let h = convert::vector(h);
-            let collider = ColliderBuilder::cuboid(h.x, h.y, h.z)
-                .position(convert::pose(body_from_box))
-                .density(0.0)
-                .friction(self.friction);
-            let w = &mut self.world;
-            w.colliders.insert_with_parent(collider, body, &mut w.bodies);
+    /// Fixes boxes to a body, each `(world_from_box, half_extents)` in metres, where they are now:
+    /// a tool's locating features, which its model's shape does not have, or its jaw inserts on
+    /// a finger. Returns their colliders.
+    pub fn attach_boxes(
+        &mut self,
+        body: RigidBodyHandle,
+        boxes: &[(Isometry3<f64>, Vector3<f64>)],
+    ) -> Vec<ColliderHandle> {
+        let world_from_body = convert::iso(self.world.bodies[body].position());
+        boxes
+            .iter()
+            .map(|(world_from_box, h)| {
+                let h = convert::vector(h);
+                let collider = ColliderBuilder::cuboid(h.x, h.y, h.z)
+                    .position(convert::pose(&(world_from_body.inverse() * world_from_box)))
+                    .density(0.0)
+                    .friction(self.friction);
+                let w = &mut self.world;
+                w.colliders.insert_with_parent(collider, body, &mut w.bodies)
+            })
+            .collect()
+    }
+
+    /// Takes colliders out of the world (their body stays).
+    pub fn detach(&mut self, colliders: &[ColliderHandle]) {
+        for &c in colliders {
+            self.world.remove_collider(c);
         }
     }
 

@@ -18,7 +18,7 @@ use anyhow::Context;
 use base64::Engine;
 use mesh::{PinholeCamera, StereoCalibration};
 use nalgebra::Isometry3;
-use rapier3d::prelude::RigidBodyHandle;
+use rapier3d::prelude::{ColliderHandle, RigidBodyHandle};
 use robot::Joints;
 use robot::pick::{FREE_SPEED, GraspCandidate, PickRequest, grasp_variants, plan_pick};
 use robot::planner::{Attached, CollisionWorld, Obstacle, PlannerParams, Problem};
@@ -127,6 +127,8 @@ struct HeldTool {
     body: RigidBodyHandle,
     gripper_from_tool: Isometry3<f64>,
     shape: parry3d::shape::SharedShape,
+    /// The colliders of its jaw inserts on the fingers.
+    inserts: Vec<ColliderHandle>,
 }
 
 /// Gauss-Seidel passes per substep while a tool is held (`sim::arm::configure_for_grasping`
@@ -134,15 +136,23 @@ struct HeldTool {
 const TOOL_PGS_ITERATIONS: usize = 8;
 
 /// The natural frequency of contacts (Hz) while a tool is held, instead of the world's
-/// (`sim::physics::CONTACT_FREQUENCY_HZ`). The flag is held by its locators in the pads' recesses
-/// (`urdf/flag_tool.urdf`), so what is left of its creep is the give of its contacts: it rocks
-/// on the pads and leans on the recesses' walls. Over 10 calibrations (`marvin eval calibrate
-/// worlds/widgets.toml --trials 10`, seeds 1-10): at the world's 200 Hz the flag moved 0.095 mm
-/// (median; 0.16 at most) and turned 0.21 deg between the first and last sighting; at 2000 Hz,
-/// 0.024 mm (0.060) and 0.039 deg. Halving the time step as well (at 1000 Hz) was no better,
-/// 0.039 mm, for twice the time. Held by friction alone it had crept 0.8-1.4 mm: rapier solves
+/// (`sim::physics::CONTACT_FREQUENCY_HZ`). The flag is held by its locators in its jaw inserts'
+/// holes (`urdf/flag_tool.urdf`), so what is left of its creep is the give of its contacts and
+/// the holes' clearance: it rocks on the pads and leans on the holes' walls. Over 10
+/// calibrations (`marvin eval calibrate worlds/widgets.toml --trials 10`, seeds 1-10), with the
+/// locators in recesses of the pads themselves (a first design): at the world's 200 Hz the flag
+/// moved 0.095 mm (median; 0.16 at most) between the first and last sighting, at 2000 Hz 0.024 mm
+/// (0.060); halving the time step as well was no better. With the inserts at 4000 Hz, one of the
+/// ten handovers lost the flag. Held by friction alone it had crept 0.8-1.4 mm: rapier solves
 /// friction on velocities, so nothing brings a slipped body back.
 const TOOL_CONTACT_FREQUENCY_HZ: f32 = 2000.0;
+
+/// Handovers tried before `take_tool` gives up, and how near the seated opening the jaws must
+/// close for the tool to count as seated (metres; seated, they closed within 0.003 mm of it; on
+/// a rim, 0.8 mm or more wide; dropped, 4 mm narrow). Over 30 calibrations one handover in 30
+/// left the flag unseated, and it fell.
+const HANDOVER_TRIES: usize = 3;
+const SEATED_TOLERANCE_M: f64 = 1e-4;
 
 /// Seconds the tool is left to settle onto its locators' walls under its weight once the
 /// operator lets go, before the arm moves.
@@ -529,7 +539,7 @@ impl<'a> SimCell<'a> {
                 base_from_shape: base_from_model,
             },
             obstacles,
-            place: place_target(self.work, bin),
+            place: place_target(self.work, bin, self.pick.released),
             start: self.joints(),
             seed: self.motion_seed(),
         })
@@ -553,27 +563,74 @@ impl<'a> SimCell<'a> {
             .map_err(|e| internal(e.to_string()))?;
         let model =
             self.scn.library.models.get(name).ok_or_else(|| internal(format!("the library has no model `{name}`")))?;
-        let width = model.grasps.first().map_or(0.0, |g| g.opening).max(tool.locator_clearance());
-        self.pick.grip(width + robot::pick::OPEN_MARGIN_M);
-        let gripper_from_tool = tool.tool_from_gripper.inverse();
-        let at = self.pick.arm.world_from_gripper(&self.pick.cell) * gripper_from_tool;
         // More Gauss-Seidel passes while the tool is held stop it turning in the jaws (12 moves,
         // held by friction: 0.77 -> 0.06 deg); stiffer contacts keep its locators where they sit.
         let ip = &mut self.pick.cell.world.integration_parameters;
         ip.num_internal_pgs_iterations = TOOL_PGS_ITERATIONS;
         ip.contact_softness.natural_frequency = TOOL_CONTACT_FREQUENCY_HZ;
+        let seated = 2.0 * tool.insert_reach();
+        for _ in 0..HANDOVER_TRIES {
+            let (body, inserts) = self.hand_in(&tool, model);
+            let jaw = self.pick.arm.opening(&self.pick.cell);
+            if tool.inserts.iter().all(|i| i.is_empty()) || (jaw - seated).abs() <= SEATED_TOLERANCE_M {
+                let gripper_from_tool = tool.tool_from_gripper.inverse();
+                let shape = collision_shape(model);
+                self.tool = Some(HeldTool { name: name.to_string(), body, gripper_from_tool, shape, inserts });
+                return Ok(ToolReply { holding: Some(name.to_string()), jaw_mm: jaw * 1e3 });
+            }
+            // Not seated (a locator on a hole's rim, or the tool dropped): take it back, try again.
+            let width = model.grasps.first().map_or(0.0, |g| g.opening);
+            self.pick.grip(tool.opening_to_take(width) + robot::pick::OPEN_MARGIN_M);
+            self.pick.cell.remove(body);
+            self.pick.cell.detach(&inserts);
+        }
+        self.restore_physics_after_tool();
+        Err(internal(format!(
+            "the {name} did not seat in its jaw inserts in {HANDOVER_TRIES} handovers (the jaws close to {:.2} mm on it)",
+            seated * 1e3
+        )))
+    }
+
+    /// One handover: the jaws open, the inserts are clipped on, the operator holds the tool
+    /// between them while they close, and lets go.
+    fn hand_in(&mut self, tool: &robot::tool::Tool, model: &mesh::Model) -> (RigidBodyHandle, Vec<ColliderHandle>) {
+        let width = model.grasps.first().map_or(0.0, |g| g.opening);
+        self.pick.grip(tool.opening_to_take(width) + robot::pick::OPEN_MARGIN_M);
+        let world_from_gripper = self.pick.arm.world_from_gripper(&self.pick.cell);
+        let at = world_from_gripper * tool.tool_from_gripper.inverse();
+        let inserts = self.fit_inserts(tool, &world_from_gripper);
         let body = self.pick.cell.add_tool(model, &at);
-        let locators: Vec<_> = tool.locators.iter().map(|b| (b.tool_from_box, b.half_extents)).collect();
+        let locators: Vec<_> = tool.locators.iter().map(|b| (at * b.tool_from_box, b.half_extents)).collect();
         self.pick.cell.attach_boxes(body, &locators);
         sim::arm::hold_without_ccd(&mut self.pick.cell, body);
         // The operator holds the tool still while the jaws close on it, so that its locators
-        // meet the pads' recesses where they are.
+        // meet the inserts' holes where they are.
         self.pick.cell.hold_in_place(body, true);
         self.pick.grip(0.0);
         self.pick.cell.hold_in_place(body, false);
         self.pick.run_for(TOOL_SEAT_S);
-        self.tool = Some(HeldTool { name: name.to_string(), body, gripper_from_tool, shape: collision_shape(model) });
-        Ok(ToolReply { holding: Some(name.to_string()), jaw_mm: self.pick.arm.opening(&self.pick.cell) * 1e3 })
+        (body, inserts)
+    }
+
+    /// Clips the tool's jaw inserts onto the open fingers' pads: each where it will be once the
+    /// jaws close on the tool, less the distance its finger has still to travel.
+    fn fit_inserts(&mut self, tool: &robot::tool::Tool, world_from_gripper: &Isometry3<f64>) -> Vec<ColliderHandle> {
+        let travel = self.pick.arm.opening(&self.pick.cell) / 2.0 - tool.insert_reach();
+        let mut colliders = Vec::new();
+        for (k, (boxes, sign)) in tool.inserts.iter().zip([1.0, -1.0]).enumerate() {
+            let shifted = Isometry3::translation(0.0, sign * travel, 0.0);
+            let at: Vec<_> =
+                boxes.iter().map(|b| (world_from_gripper * shifted * b.tool_from_box, b.half_extents)).collect();
+            colliders.extend(self.pick.cell.attach_boxes(self.pick.arm.finger_bodies[k], &at));
+        }
+        colliders
+    }
+
+    /// The solver's settings for picks again (see `take_tool`).
+    fn restore_physics_after_tool(&mut self) {
+        sim::arm::configure_for_grasping(&mut self.pick.cell);
+        self.pick.cell.world.integration_parameters.contact_softness.natural_frequency =
+            sim::physics::CONTACT_FREQUENCY_HZ;
     }
 
     /// The jaws open and the operator takes the tool away.
@@ -583,9 +640,8 @@ impl<'a> SimCell<'a> {
         let width = self.scn.library.models.get(&tool.name).and_then(|m| m.grasps.first()).map_or(0.0, |g| g.opening);
         self.pick.grip(width + robot::pick::OPEN_MARGIN_M);
         self.pick.cell.remove(tool.body);
-        sim::arm::configure_for_grasping(&mut self.pick.cell);
-        self.pick.cell.world.integration_parameters.contact_softness.natural_frequency =
-            sim::physics::CONTACT_FREQUENCY_HZ;
+        self.pick.cell.detach(&tool.inserts);
+        self.restore_physics_after_tool();
         Ok(ToolReply { holding: None, jaw_mm: self.pick.arm.opening(&self.pick.cell) * 1e3 })
     }
 
