@@ -579,8 +579,7 @@ impl<'a> SimCell<'a> {
                 return Ok(ToolReply { holding: Some(name.to_string()), jaw_mm: jaw * 1e3 });
             }
             // Not seated (a locator on a hole's rim, or the tool dropped): take it back, try again.
-            let width = model.grasps.first().map_or(0.0, |g| g.opening);
-            self.pick.grip(tool.opening_to_take(width) + robot::pick::OPEN_MARGIN_M);
+            self.open_to_take(&tool, model);
             self.pick.cell.remove(body);
             self.pick.cell.detach(&inserts);
         }
@@ -591,11 +590,16 @@ impl<'a> SimCell<'a> {
         )))
     }
 
+    /// Opens the jaws wide enough to take the tool (or to let it go).
+    fn open_to_take(&mut self, tool: &robot::tool::Tool, model: &mesh::Model) {
+        let width = model.grasps.first().map_or(0.0, |g| g.opening);
+        self.pick.grip(tool.opening_to_take(width) + robot::pick::OPEN_MARGIN_M);
+    }
+
     /// One handover: the jaws open, the inserts are clipped on, the operator holds the tool
     /// between them while they close, and lets go.
     fn hand_in(&mut self, tool: &robot::tool::Tool, model: &mesh::Model) -> (RigidBodyHandle, Vec<ColliderHandle>) {
-        let width = model.grasps.first().map_or(0.0, |g| g.opening);
-        self.pick.grip(tool.opening_to_take(width) + robot::pick::OPEN_MARGIN_M);
+        self.open_to_take(tool, model);
         let world_from_gripper = self.pick.arm.world_from_gripper(&self.pick.cell);
         let at = world_from_gripper * tool.tool_from_gripper.inverse();
         let inserts = self.fit_inserts(tool, &world_from_gripper);
