@@ -44,8 +44,9 @@ pub struct GraspCandidate {
 pub struct PlaceTarget {
     pub base_from_floor_centre: Isometry3<f64>,
     pub size_xy: [f64; 2],
-    /// Parts released into this bin so far: each is dropped over the next of its spots in turn,
-    /// so that they spread over the floor instead of piling up under the release.
+    /// Picks the arm has carried out so far (its own count): each part is dropped over the next
+    /// of the bin's spots in turn, so that parts spread over the floor instead of piling up
+    /// under the release.
     pub released: usize,
 }
 
