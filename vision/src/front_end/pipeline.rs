@@ -3,7 +3,7 @@
 use super::canny::{CannyParams, EdgeMap, Edgel};
 use super::lines2d::{Line2, Lines2dParams, fit_lines};
 use super::lines3d::{Line3, Lines3dParams, complete_flat_lines, fit_lines3d};
-use super::pmf::{Match, PmfParams, pmf};
+use super::pmf::{Match, PmfParams, pmf, right_figural_continuity};
 use super::rectify::{Rectification, Side};
 use super::strings::{EdgeString, link_strings};
 use crate::image::GreyImage;
@@ -110,7 +110,14 @@ pub fn run_with(left: &GreyImage, right: &GreyImage, geometry: &Geometry, canny_
     };
     watch.lap("rectify");
     let params = PmfParams { disparity_min, disparity_max, ..PmfParams::default() };
-    let matches = pmf(&left_rectified, &right_rectified, &left_strings, &params);
+    let mut matches = pmf(&left_rectified, &right_rectified, &left_strings, &params);
+    let right_strings = link_strings(&r, MIN_STRING);
+    right_figural_continuity(
+        &mut matches,
+        (&left_rectified, &left_strings),
+        (&right_rectified, &right_strings),
+        params.continuity_step,
+    );
     watch.lap("pmf");
     let lines2d = fit_lines(&left_rectified, &left_strings, &Lines2dParams::default());
     watch.lap("geom2d");
@@ -123,7 +130,6 @@ pub fn run_with(left: &GreyImage, right: &GreyImage, geometry: &Geometry, canny_
     watch.lap("geom3d");
     // What the front end vouches for: the matches that lie on a 3D line and agree with it.
     // Matches off every line (near corners, on short or flat strings, isolated) are dropped.
-    let mut matches = matches;
     if rect.is_some() {
         let mut on_line = vec![false; left_rectified.len()];
         for l in &lines3d {

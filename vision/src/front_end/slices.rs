@@ -18,7 +18,7 @@ use super::canny::{CannyParams, CannyWorkspace, EdgeMap, Edgel};
 use super::lines2d::{Line2, Lines2dParams, fit_lines};
 use super::lines3d::{Line3, Lines3dParams, complete_flat_lines, fit_lines3d};
 use super::pipeline::{FrontEnd, MIN_STRING, Stopwatch, WORKSPACE_DEPTH_M, disparity_range};
-use super::pmf::{Match, PmfParams, pmf};
+use super::pmf::{Match, PmfParams, pmf, right_figural_continuity};
 use super::rectify::{Rectification, Side};
 use super::strings::{EdgeString, link_strings};
 use crate::image::GreyImage;
@@ -232,17 +232,27 @@ pub fn join(slices: &[SliceResult], rect: Rectification, width: usize, height: u
                 fe.left_rectified.push(s.left_rect[i]);
             }
         }
-        fe.matches.extend(s.matches.iter().filter_map(|m| Some(Match { left: ids[m.left as usize]?, ..*m })));
+        let mut right_ids = Vec::with_capacity(s.right.len());
         for (e, &p) in s.right.iter().zip(&s.right_pixel) {
             if fe.right.at_pixel[p] == super::canny::NO_EDGEL {
                 fe.right.push(p, *e);
             }
+            right_ids.push(fe.right.at_pixel[p]);
         }
+        fe.matches.extend(
+            s.matches
+                .iter()
+                .filter_map(|m| Some(Match { left: ids[m.left as usize]?, right: right_ids[m.right as usize], ..*m })),
+        );
         ids_of.push(ids);
     }
     // Link the owned edgels over the whole image: across the seams, strings come out as one
     // processor would have linked them.
     fe.left_strings = link_strings(&fe.left, MIN_STRING);
+    // Continuity along the right image's strings is judged on whole strings, as one processor
+    // would (a slice sees a right string cut at its rows); the strings whose matches it
+    // changes have their lines fitted afresh below.
+    let dropped = right_continuity_over_the_image(&mut fe, &rect);
     // A string some slice saw whole, in the same order, keeps that slice's lines; the others
     // (those that crossed a seam) have their 2D and 3D lines fitted afresh.
     let mut seen_whole: std::collections::HashMap<Vec<u32>, (usize, usize)> = Default::default();
@@ -256,7 +266,8 @@ pub fn join(slices: &[SliceResult], rect: Rectification, width: usize, height: u
     let mut inlier = vec![false; fe.left.edgels.len()];
     let mut refit = Vec::new();
     for (gi, st) in fe.left_strings.iter().enumerate() {
-        let Some(&(k, si)) = seen_whole.get(&st.edgels) else {
+        let whole = seen_whole.get(&st.edgels).filter(|_| !st.edgels.iter().any(|&i| dropped[i as usize]));
+        let Some(&(k, si)) = whole else {
             refit.push(gi);
             continue;
         };
@@ -294,6 +305,27 @@ pub fn join(slices: &[SliceResult], rect: Rectification, width: usize, height: u
     // As the whole-image front end does: vouch only for matches on 3D lines.
     fe.matches.retain(|m| inlier[m.left as usize]);
     fe
+}
+
+/// [`right_figural_continuity`] over the joined matches (right edgels indexed in the whole
+/// right image); which left edgels lost their match.
+fn right_continuity_over_the_image(fe: &mut FrontEnd, rect: &Rectification) -> Vec<bool> {
+    let right_rect = rect.rectify_edgels(Side::Right, &fe.right.edgels);
+    let right_strings = link_strings(&fe.right, MIN_STRING);
+    let mut dropped = vec![false; fe.left.edgels.len()];
+    for m in &fe.matches {
+        dropped[m.left as usize] = true;
+    }
+    right_figural_continuity(
+        &mut fe.matches,
+        (&fe.left_rectified, &fe.left_strings),
+        (&right_rect, &right_strings),
+        PmfParams::default().continuity_step,
+    );
+    for m in &fe.matches {
+        dropped[m.left as usize] = false;
+    }
+    dropped
 }
 
 /// Whether slice `s` owns its left edgel `i` (the edgel's row is one of the slice's own).
