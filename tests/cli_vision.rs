@@ -168,9 +168,10 @@ fn locate_reports_poses_grasps_and_misses() {
 
 /// Seed 6 hides most of its L-bracket behind other parts; `locate` reports it missed, with the
 /// fraction of its edges in view and the evidence its true pose finds. Measured: 20% of its
-/// edges visible; at the truth 0.152 of its wireframe in 3D lines along 5 model lines (enough for
-/// the matcher's 0.15 on 3), but only 0.28 of it on image edgels, short of the 0.5 a report
-/// needs: the evidence says why it was missed.
+/// edges visible; at the truth 0.121 of its wireframe in 3D lines along 4 model lines (short of
+/// the matcher's 0.15; it was 0.152 along 5 before PMF compared the grey levels beside the
+/// edges), and only 0.28 of it on image edgels, short of the 0.5 a report needs: the evidence
+/// says why it was missed.
 #[test]
 fn locate_says_how_much_of_a_missed_object_was_visible() {
     let out = marvin(&["locate", "worlds/widgets.toml", "--seed", "6", "--json"]);
@@ -181,8 +182,8 @@ fn locate_says_how_much_of_a_missed_object_was_visible() {
     let figure = |key: &str| bracket[key].as_f64().unwrap_or_else(|| panic!("{key}: {bracket}"));
     assert!((0.15..0.25).contains(&figure("visible_fraction")), "{bracket}");
     let bars = vision::matcher::MatchParams::default();
-    assert!(figure("support_fraction_at_truth") >= bars.min_support_fraction, "{bracket}");
-    assert!(bracket["supported_lines_at_truth"].as_u64().unwrap() >= bars.min_support_lines as u64, "{bracket}");
+    assert!((0.05..0.3).contains(&figure("support_fraction_at_truth")), "{bracket}");
+    assert!(bracket["supported_lines_at_truth"].as_u64().unwrap() >= 2, "{bracket}");
     assert!(figure("image_support_at_truth") < bars.min_image_support, "{bracket}");
     assert!(figure("image_support_at_truth") > 0.15, "the bracket's visible edges are on edgels: {bracket}");
 }

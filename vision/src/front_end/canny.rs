@@ -32,7 +32,16 @@ pub struct Edgel {
     pub orientation: f32,
     /// Gradient magnitude at the edge, grey levels per pixel.
     pub contrast: f32,
+    /// The smoothed image's grey level [`SIDE_PX`] to either side of the edge: on its dark side
+    /// and on its bright side. What the two cameras see of one surface is alike; what lies
+    /// behind a silhouette is not.
+    #[serde(default)]
+    pub sides: [f32; 2],
 }
+
+/// How far from the edge (pixels, across it) its sides are sampled: past the blur of a step
+/// at sigma 1.
+pub const SIDE_PX: f32 = 2.5;
 
 /// The edgels of an image, and which pixel each came from.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -215,6 +224,19 @@ impl CannyWorkspace {
         (0.5 * (s[i + 1] - s[i - 1]), 0.5 * (s[i + w] - s[i - w]))
     }
 
+    /// The smoothed grey level [`SIDE_PX`] behind and ahead of `(x, y)` along the gradient
+    /// `(gx, gy)` (the nearest pixel, clamped to the image).
+    fn sides_at(&self, x: f32, y: f32, gx: f32, gy: f32, w: usize, h: usize) -> [f32; 2] {
+        let n = (gx * gx + gy * gy).sqrt().max(1e-6);
+        let (ux, uy) = (gx / n * SIDE_PX, gy / n * SIDE_PX);
+        let at = |px: f32, py: f32| {
+            let xi = (px.round().max(0.0) as usize).min(w - 1);
+            let yi = (py.round().max(0.0) as usize).min(h - 1);
+            self.smoothed[yi * w + xi]
+        };
+        [at(x - ux, y - uy), at(x + ux, y + uy)]
+    }
+
     /// Keeps pixels whose magnitude peaks across the edge, located to sub-pixel acuity.
     fn suppress_non_maxima(&self, w: usize, h: usize, low: f32, out: &mut EdgeMap) {
         out.reset(w, h);
@@ -246,13 +268,15 @@ impl CannyWorkspace {
                     continue;
                 }
                 let offset = peak_offset(behind, m0, ahead);
+                let (ex, ey) = ((i % w) as f32 + offset * sx as f32, y as f32 + offset * sy as f32);
                 out.push(
                     i,
                     Edgel {
-                        x: (i % w) as f32 + offset * sx as f32,
-                        y: y as f32 + offset * sy as f32,
+                        x: ex,
+                        y: ey,
                         orientation: gy.atan2(gx),
                         contrast: m0 - 0.25 * (behind - ahead) * offset,
+                        sides: self.sides_at(ex, ey, gx, gy, w, h),
                     },
                 );
             }

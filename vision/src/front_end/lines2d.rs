@@ -149,7 +149,7 @@ mod tests {
     use super::*;
 
     fn edgel(x: f32, y: f32) -> Edgel {
-        Edgel { x, y, orientation: 0.0, contrast: 10.0 }
+        Edgel { x, y, orientation: 0.0, contrast: 10.0, sides: [0.0; 2] }
     }
 
     #[test]

@@ -111,7 +111,7 @@ impl Rectification {
                 let (tx, ty) = apply(&h, x - s, y + c);
                 // Tangent (-sin, cos) of the gradient angle: angle = atan2(-tangent.x, tangent.y).
                 let orientation = (-(tx - rx)).atan2(ty - ry);
-                Edgel { x: rx as f32, y: ry as f32, orientation: orientation as f32, contrast: e.contrast }
+                Edgel { x: rx as f32, y: ry as f32, orientation: orientation as f32, ..*e }
             })
             .collect()
     }
@@ -188,7 +188,13 @@ pub(crate) mod tests {
         let (pa, pb) = (calib.left.project_world(&a).unwrap(), calib.left.project_world(&b).unwrap());
         let mid = (pa + pb.coords) / 2.0;
         let t = (pb - pa).normalize();
-        let e = Edgel { x: mid.x as f32, y: mid.y as f32, orientation: t.x.atan2(-t.y) as f32, contrast: 10.0 };
+        let e = Edgel {
+            x: mid.x as f32,
+            y: mid.y as f32,
+            orientation: t.x.atan2(-t.y) as f32,
+            contrast: 10.0,
+            sides: [0.0; 2],
+        };
         let r = rect.rectify_edgels(Side::Left, &[e])[0];
         let (ra, rb) = (rect.to_rectified(Side::Left, pa.x, pa.y), rect.to_rectified(Side::Left, pb.x, pb.y));
         let rt = Vector3::new(rb.0 - ra.0, rb.1 - ra.1, 0.0).normalize();

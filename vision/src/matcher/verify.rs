@@ -354,7 +354,10 @@ pub(crate) mod drawn {
                 let (x, y) = (q.x.round() as usize, q.y.round() as usize);
                 if x < 512 && y < 512 && edges.edgel_at(x, y).is_none() {
                     let orientation = d.x.atan2(-d.y) as f32; // the gradient, across the edge
-                    edges.push(y * 512 + x, Edgel { x: q.x as f32, y: q.y as f32, orientation, contrast: 50.0 });
+                    edges.push(
+                        y * 512 + x,
+                        Edgel { x: q.x as f32, y: q.y as f32, orientation, contrast: 50.0, sides: [0.0; 2] },
+                    );
                 }
             }
             let normal = cam.ray_cam(a.x, a.y).cross(&cam.ray_cam(b.x, b.y)).normalize();
@@ -422,7 +425,7 @@ mod tests {
                 let orientation = (next() * 4.0 - 2.0) * std::f64::consts::PI;
                 edges.push(
                     py * 64 + px,
-                    Edgel { x: x as f32, y: y as f32, orientation: orientation as f32, contrast: 9.0 },
+                    Edgel { x: x as f32, y: y as f32, orientation: orientation as f32, contrast: 9.0, sides: [0.0; 2] },
                 );
             }
         }
