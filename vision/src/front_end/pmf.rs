@@ -5,8 +5,8 @@
 //!    `orientation_reject`, between them only if the disparity gradient along the edge they
 //!    imply is within `orientation_gradient_limit`), contrast (same sign across the raster,
 //!    ratio within `contrast_ratio`) and the grey level beside the edge (alike on one side at
-//!    least, within `side_tolerance`: the surface both cameras see). Edgels running nearly along the raster are not matched:
-//!    their disparity is ill defined.
+//!    least, within `side_tolerance`: the surface both cameras see). Edgels running nearly
+//!    along the raster are not matched: their disparity is ill defined.
 //! 2. Support: each candidate gathers, from every other left edgel within `support_radius`, the
 //!    inverse distance to it if one of that edgel's candidates lies within the disparity-gradient
 //!    limit of this one (each neighbour counts once, with its best such candidate).
@@ -472,11 +472,12 @@ fn figural_continuity(matches: &mut Vec<Match>, n_left: usize, strings: &[EdgeSt
 /// On tuning seeds (`marvin eval vision worlds/widgets.toml --scenes 20 --seed S`), within
 /// 0.5 px / wrong / coverage before and after: seeds 1-20 95.37 / 1.34 / 70.6% -> 95.64 / 1.20
 /// / 71.5%; 101-120 95.27 / 1.56 / 73.2% -> 95.45 / 1.39 / 73.9%; 2001-2020 95.18 / 1.36 /
-/// 72.0% -> 95.27 / 1.28 / 71.7%. Dropping the loser's matches on the whole right string
-/// instead cost 2.2 points of coverage; giving the right edgel to the winner's unmatched edgel
-/// gained nothing. Most wrong lines are left: their true partner is there but PMF refused it
-/// (a silhouette's contrast 4 on the left against 40 on the right, beyond `contrast_ratio`)
-/// or preferred another on support.
+/// 72.0% -> 95.27 / 1.28 / 71.7% (measured before the side test in candidate selection).
+/// Dropping the loser's matches on the whole right string instead cost 2.2 points of coverage;
+/// giving the right edgel to the winner's unmatched edgel gained nothing. Most wrong lines were
+/// left: their true partner was there but PMF refused it (a silhouette's contrast 4 on the left
+/// against 40 on the right, beyond the contrast ratio of then) or preferred another on support;
+/// the side test (`side_tolerance`) is what came of that.
 pub fn right_figural_continuity(
     matches: &mut Vec<Match>,
     (left, left_strings): (&[Edgel], &[EdgeString]),
@@ -621,6 +622,7 @@ mod tests {
         let flat_right: Vec<Edgel> = flat.iter().map(|e| Edgel { x: e.x - 40.0, ..*e }).collect();
         assert!(pmf(&flat, &flat_right, &strings, &p).is_empty());
     }
+
     /// A right string that one left edge (the occluder's, 30 rasters) matches, with a stretch of
     /// it taken by another left edge at 10 px more disparity (one the right camera cannot see):
     /// the stretch goes back, since the occluder has edgels there at its own disparity. The same
@@ -653,6 +655,7 @@ mod tests {
         assert_eq!(matches.iter().filter(|m| m.left < 30).count(), 20, "the occluder lost matches");
         assert_eq!(matches.iter().filter(|m| m.left >= 40).count(), 10, "the edge beyond lost matches");
     }
+
     /// An edge of the same contrast and direction, but with neither side's grey level like the
     /// left edge's, is another edge: it is no candidate. Alike on one side (the other side a
     /// different background, as behind a silhouette), it is.

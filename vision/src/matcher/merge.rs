@@ -217,8 +217,8 @@ pub(crate) fn hidden_in_part(
 /// scenes, `widgets.toml` seeds 1-50, 101-200, 2001-2050, 3001-3050 and `dense.toml` and
 /// `side_light.toml` 1-50 and 2001-2050, the root changed that scene alone; a fourth root the
 /// same; on the first 300 of them the share squared located 4 fewer objects with 4 more false
-/// reports, and the share left out 8 fewer with 9 more.) What an object kept hides cannot count against a
-/// report, so after each one kept the reports it may hide have their share counted again over
+/// reports, and the share left out 8 fewer with 9 more.) What an object kept hides cannot
+/// count against a report, so after each one kept the reports it may hide have their share counted again over
 /// the part still in view (a U-channel with an arm under a block is judged on the rest of it).
 pub(crate) fn resolve(
     models: &[MatcherModel],
