@@ -45,6 +45,9 @@ pub fn locate_all(
             }
         }
     }
+    if let Some(ev) = image {
+        super::shading::turn_misread(models, scene, p, ev, &mut kept);
+    }
     kept
 }
 
@@ -145,7 +148,7 @@ const RIVAL_MIN_IMAGE_SUPPORT: f64 = 0.85;
 /// model's length matched by 3D lines (the first look asks 0.15; of the 7 false reports on
 /// tuning seeds 1-50, 2001-2050 and 3001-3050, 5 had 0.14-0.29). A search for rivals costs
 /// 1-7 ms a report challenged (10 ms before the candidates were sifted).
-const RIVAL_MAX_SUPPORT: f64 = 0.3;
+pub(crate) const RIVAL_MAX_SUPPORT: f64 = 0.3;
 /// A rival's pose is refined only if it already runs along edgels for this share of its
 /// wireframe (the second look's own bar is 0.6).
 const RIVAL_MIN_TO_REFINE: f64 = 0.75;

@@ -37,6 +37,7 @@
 //! - [`search`]: one model's virtual matcher, instance after instance.
 //! - [`occlusion`]: located solids (and a model's own bulk) hiding parts of a wireframe.
 //! - [`second_look`]: objects with too few 3D lines, from one 3D line and an image line.
+//! - [`shading`]: the grey levels of a reading's faces, and the one light they agree on.
 //! - [`merge`]: all models in parallel, reports merged, the second and third looks.
 //!
 //! The matcher depends on the front end's output types only ([`crate::front_end`]), never the
@@ -51,6 +52,7 @@ pub mod pose_fit;
 pub mod ranking;
 pub mod search;
 pub mod second_look;
+pub mod shading;
 pub mod support;
 pub mod verify;
 pub mod views;

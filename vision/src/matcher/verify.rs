@@ -5,7 +5,7 @@
 //! much of a candidate's wireframe the objects already located explain ([`Explained`]).
 
 use super::model::MatcherModel;
-use crate::front_end::canny::EdgeMap;
+use crate::front_end::canny::{EdgeMap, Edgel};
 use mesh::PinholeCamera;
 use nalgebra::{Isometry3, Point2, Vector2};
 
@@ -307,6 +307,12 @@ impl EdgeMask {
 }
 
 fn edgel_along(edges: &EdgeMap, x: f64, y: f64, dir: Vector2<f64>) -> bool {
+    edgel_near(edges, x, y, dir).is_some()
+}
+
+/// The first edgel found within [`NEAR_PX`] across a line running along `dir` through (`x`,
+/// `y`) whose edge runs within [`ALONG_RAD`] of it.
+pub(crate) fn edgel_near(edges: &EdgeMap, x: f64, y: f64, dir: Vector2<f64>) -> Option<&Edgel> {
     let (cx, cy) = (x.round() as i64, y.round() as i64);
     let r = NEAR_PX.ceil() as i64;
     for py in cy - r..=cy + r {
@@ -322,11 +328,11 @@ fn edgel_along(edges: &EdgeMap, x: f64, y: f64, dir: Vector2<f64>) -> bool {
             let (s, c) = (e.orientation as f64).sin_cos();
             let tangent = Vector2::new(-s, c);
             if across <= NEAR_PX && tangent.dot(&dir).abs() >= ALONG_RAD.cos() {
-                return true;
+                return Some(e);
             }
         }
     }
-    false
+    None
 }
 
 /// Test scenes: what Canny and the line finder would give for a model alone in view.
