@@ -1,7 +1,8 @@
 //! All models at once: each model's matcher in parallel, then the merge that keeps the best
 //! supported of reports that share lines or space, the second look (objects with too few 3D
-//! lines), the third (candidates partly hidden by objects already located), and last each
-//! report set against other models read from its lines ([`rival_reading`]).
+//! lines), the third (candidates partly hidden by objects already located), each report set
+//! against other models read from its lines ([`rival_reading`]), and last the reports' faces
+//! read for one light ([`super::shading::judge_by_shading`]).
 
 use super::hypotheses::scene_pairs;
 use super::model::{Located, MatchParams, MatcherModel, Seg};
@@ -46,7 +47,7 @@ pub fn locate_all(
         }
     }
     if let Some(ev) = image {
-        super::shading::turn_misread(models, scene, p, ev, &mut kept);
+        super::shading::judge_by_shading(models, scene, p, ev, &mut kept);
     }
     kept
 }

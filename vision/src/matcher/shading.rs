@@ -313,18 +313,19 @@ fn half_turns(model: &MatcherModel) -> [Isometry3<f64>; 3] {
     })
 }
 
-/// Each report whose faces the scene's light does not explain, replaced by the report turned
-/// over (a half turn about one of its box's axes, refitted on the 3D lines and the image) where
-/// that keeps the 3D evidence and fits the light far better. The light is fitted to all the
-/// reports' faces at once ([`Light::fit`]); each report's faces are read with the others as
-/// solids that may hide them.
+/// Each report on little 3D evidence whose faces the scene's light does not explain: replaced
+/// by the report turned over (a half turn about one of its box's axes, refitted on the 3D lines
+/// and the image) where that keeps the 3D evidence and fits the light far better, else dropped
+/// ([`REJECT_MISFIT`]). The light is fitted to all the reports' faces at once ([`Light::fit`]);
+/// each report's faces are read with the others as solids that may hide them.
 ///
-/// Why: a wedge lying on its side shows a lit trapezoid and dark faces; read end for end it
-/// lies along the same 3D lines and along more of the image's edgels (its dark faces' edges
-/// against the table are faint), but its slope then faces where the image shows a face lit as
-/// the wedge's bottom would be (side-light seed 12: 0.4 mm and 180 deg from the truth, faces
-/// 132 grey per albedo where the light gives 52; turned back, within 1).
-pub(crate) fn turn_misread(
+/// Why: a part read onto other objects' lines, or turned over, claims faces where the image
+/// shows surfaces of other slopes (a wedge turned end for end puts its bottom where its slope
+/// is: the unit test's wedge, drawn by ray casting, fits the light within 2 grey levels per
+/// unit albedo as it lies and by 17-92 turned). On the tuning seeds the turn has not yet
+/// replaced a report: the turned wedges seen there show alike in the default light, and in the
+/// side light the face that would tell them apart is too narrow in the image to be read.
+pub(crate) fn judge_by_shading(
     models: &[MatcherModel],
     scene: &[super::model::Seg],
     p: &super::model::MatchParams,
