@@ -37,7 +37,8 @@
 //! - [`search`]: one model's virtual matcher, instance after instance.
 //! - [`occlusion`]: located solids (and a model's own bulk) hiding parts of a wireframe.
 //! - [`second_look`]: objects with too few 3D lines, from one 3D line and an image line.
-//! - [`shading`]: the grey levels of a reading's faces, and the one light they agree on.
+//! - [`light`]: the scene's light as faces' grey levels show it, and the contrast of an edge.
+//! - [`shading`]: the grey levels of a reading's faces, read off the edgels beside its edges.
 //! - [`merge`]: all models in parallel, reports merged, the second and third looks.
 //!
 //! The matcher depends on the front end's output types only ([`crate::front_end`]), never the
@@ -45,6 +46,7 @@
 
 pub mod hypotheses;
 pub mod image_fit;
+pub mod light;
 pub mod merge;
 pub mod model;
 pub mod occlusion;

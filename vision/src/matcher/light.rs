@@ -1,0 +1,275 @@
+//! The scene's light as the faces of its readings show it: one distant light and an ambient
+//! term, fitted robustly to faces' grey levels (a few of them a wrong reading's), and the
+//! contrast it gives an edge between two faces. The faces themselves are read in
+//! [`super::shading`]; the image checks ([`super::verify`]) leave out edges the light cannot
+//! show.
+
+use super::model::MatcherModel;
+use nalgebra::{Isometry3, Matrix4, Vector3, Vector4};
+use std::ops::Mul;
+
+/// One face of a reading as the image shows it: its outward normal (`cam` frame), the median
+/// grey level read beside its edges divided by the model's albedo, and how many edgels said so.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FaceShade {
+    pub normal: Vector3<f64>,
+    pub grey_per_albedo: f64,
+    pub samples: usize,
+}
+
+fn quantile(v: &mut [f64], q: f64) -> f64 {
+    v.sort_by(|a, b| a.total_cmp(b));
+    v[((v.len() - 1) as f64 * q).round() as usize]
+}
+
+pub(crate) fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(|a, b| a.total_cmp(b));
+    let n = v.len();
+    if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) }
+}
+
+/// One distant light and an ambient term, as the faces of a scene's readings agree on them:
+/// a face of normal `n` shows `ambient + max(0, towards_light . n)` grey levels per unit
+/// albedo (`towards_light` carries the diffuse strength).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Light {
+    pub ambient: f64,
+    pub towards_light: Vector3<f64>,
+}
+
+/// At most this many lit faces are tried three at a time for [`Light::consensus`].
+const CONSENSUS_FACES: usize = 24;
+/// Passes of reweighting in [`Light::fit`].
+const FIT_PASSES: usize = 8;
+/// A face this far off a light (grey levels per unit albedo) counts as no more than this in
+/// judging which of two lights explains the faces better.
+const OUTLIER: f64 = 15.0;
+
+impl Light {
+    /// The grey level per unit albedo a face of normal `n` (`cam` frame) shows.
+    pub fn predict(&self, n: &Vector3<f64>) -> f64 {
+        self.ambient + self.towards_light.dot(n).max(0.0)
+    }
+
+    /// The light that best explains `faces` (weighted by their samples), robustly: faces far
+    /// off the fit (a wrong reading's, or one half hidden by something not located) are
+    /// weighed down pass by pass (Tukey's biweight on the residuals' median spread). `None`
+    /// with fewer than five faces or normals too alike to fix a direction.
+    pub fn fit(faces: &[FaceShade]) -> Option<Light> {
+        if faces.len() < 5 {
+            return None;
+        }
+        // Two starts: every face lit, and the darkest faces as the ambient term with the others
+        // lit (where the light comes from the side, many faces see none of it, and a fit that
+        // starts with them lit can settle on a wrong light). The one that explains more stands.
+        let all_lit = Light::solve(faces, &vec![1.0; faces.len()], None);
+        let mut greys: Vec<f64> = faces.iter().map(|f| f.grey_per_albedo).collect();
+        let darkest = quantile(&mut greys, 0.1);
+        let ambient_start = Light::solve_with_ambient(faces, &vec![1.0; faces.len()], darkest, None);
+        // No face shows less than the ambient term, which is kept below the darkest faces
+        // read: left free, it took the one top that parts lying flat all show for the ambient
+        // term and the faces in shadow for wrong ones (side-light seed 30012).
+        let consensus = Light::consensus(faces, darkest);
+        let light = [all_lit, ambient_start, consensus]
+            .into_iter()
+            .flatten()
+            .filter_map(|start| Light::reweighted(faces, start, darkest + OUTLIER / 3.0))
+            .min_by(|a, b| a.robust_cost(faces).total_cmp(&b.robust_cost(faces)))?;
+        // A light that most of what was read does not bear out is no light to judge by.
+        let samples = |fs: &mut dyn Iterator<Item = &FaceShade>| fs.map(|f| f.samples).sum::<usize>();
+        let near =
+            samples(&mut faces.iter().filter(|f| (f.grey_per_albedo - light.predict(&f.normal)).abs() < OUTLIER));
+        (2 * near >= samples(&mut faces.iter())).then_some(light)
+    }
+
+    /// Passes of reweighting from `light`: faces far off the fit (a wrong reading's, or one half
+    /// hidden by something not located) are weighed down (Tukey's biweight on the residuals'
+    /// median spread).
+    fn reweighted(faces: &[FaceShade], mut light: Light, max_ambient: f64) -> Option<Light> {
+        for _ in 0..FIT_PASSES {
+            let residuals: Vec<f64> = faces.iter().map(|f| f.grey_per_albedo - light.predict(&f.normal)).collect();
+            let mut abs: Vec<f64> = residuals.iter().map(|r| r.abs()).collect();
+            let scale = (1.4826 * median(&mut abs)).max(2.0);
+            let c = 4.685 * scale;
+            let weights: Vec<f64> =
+                residuals.iter().map(|r| if r.abs() >= c { 0.0 } else { (1.0 - (r / c).powi(2)).powi(2) }).collect();
+            let free = Light::solve(faces, &weights, Some(&light))?;
+            light = if free.ambient <= max_ambient {
+                free
+            } else {
+                Light::solve_with_ambient(faces, &weights, max_ambient, Some(&light))?
+            };
+        }
+        Some(light)
+    }
+
+    /// The faces' squared misfits, each counted up to [`OUTLIER`] and weighted by its samples.
+    fn robust_cost(&self, faces: &[FaceShade]) -> f64 {
+        faces
+            .iter()
+            .map(|f| {
+                (f.grey_per_albedo - self.predict(&f.normal)).powi(2).min(OUTLIER * OUTLIER) * (f.samples as f64).sqrt()
+            })
+            .sum()
+    }
+
+    /// The ambient term fixed at `ambient` and the light vector through three lit faces, of
+    /// every three, that the most faces (by samples) agree with within [`OUTLIER`]: where a
+    /// few faces turned to the light stand among many that all show one top or lie in shadow,
+    /// a least-squares start takes the few for wrong ones.
+    fn consensus(faces: &[FaceShade], ambient: f64) -> Option<Light> {
+        let lit: Vec<&FaceShade> =
+            faces.iter().filter(|f| f.grey_per_albedo > ambient + OUTLIER).take(CONSENSUS_FACES).collect();
+        let agreeing = |l: &Light| -> usize {
+            faces.iter().filter(|f| (f.grey_per_albedo - l.predict(&f.normal)).abs() < OUTLIER).map(|f| f.samples).sum()
+        };
+        let mut best: Option<(usize, Light)> = None;
+        for i in 0..lit.len() {
+            for j in i + 1..lit.len() {
+                for k in j + 1..lit.len() {
+                    let three = [lit[i], lit[j], lit[k]];
+                    let normals = nalgebra::Matrix3::from_rows(&three.map(|f| f.normal.transpose()));
+                    let greys = Vector3::from_iterator(three.iter().map(|f| f.grey_per_albedo - ambient));
+                    let Some(towards_light) = normals.try_inverse().map(|inv| inv * greys) else { continue };
+                    let light = Light { ambient, towards_light };
+                    let n = agreeing(&light);
+                    if best.as_ref().is_none_or(|(m, _)| n > *m) {
+                        best = Some((n, light));
+                    }
+                }
+            }
+        }
+        best.map(|(_, l)| l)
+    }
+
+    /// The ambient term fixed at `ambient`, the light vector fitted to the faces `lit_by` lights
+    /// (without it, those brighter than the ambient term).
+    fn solve_with_ambient(faces: &[FaceShade], weights: &[f64], ambient: f64, lit_by: Option<&Light>) -> Option<Light> {
+        let mut ata = nalgebra::Matrix3::zeros();
+        let mut atb = Vector3::zeros();
+        for (f, w) in faces.iter().zip(weights) {
+            let lit = match lit_by {
+                Some(l) => l.towards_light.dot(&f.normal) > 0.0,
+                None => f.grey_per_albedo > ambient + OUTLIER / 3.0,
+            };
+            if lit {
+                let w = w * (f.samples as f64).sqrt();
+                ata += f.normal * f.normal.transpose() * w;
+                atb += f.normal * ((f.grey_per_albedo - ambient) * w);
+            }
+        }
+        let towards_light = ata.try_inverse()? * atb;
+        towards_light.iter().all(|v| v.is_finite()).then_some(Light { ambient, towards_light })
+    }
+
+    /// Weighted least squares for the ambient term and the light vector, faces turned away
+    /// from `lit_by` (when given) fitting the ambient term alone.
+    fn solve(faces: &[FaceShade], weights: &[f64], lit_by: Option<&Light>) -> Option<Light> {
+        let mut ata = Matrix4::zeros();
+        let mut atb = Vector4::zeros();
+        for (f, w) in faces.iter().zip(weights) {
+            let lit = lit_by.is_none_or(|l| l.towards_light.dot(&f.normal) > 0.0);
+            let n = if lit { f.normal } else { Vector3::zeros() };
+            let row = Vector4::new(1.0, n.x, n.y, n.z);
+            let w = w * (f.samples as f64).sqrt();
+            ata += row * row.transpose() * w;
+            atb += row * (f.grey_per_albedo * w);
+        }
+        let x = ata.try_inverse()?.mul(&atb);
+        x.iter().all(|v| v.is_finite()).then(|| Light { ambient: x[0], towards_light: Vector3::new(x[1], x[2], x[3]) })
+    }
+
+    /// How far (grey levels per unit albedo, weighted by samples) `faces` lie from the light's
+    /// prediction on average.
+    pub fn misfit(&self, faces: &[FaceShade]) -> Option<f64> {
+        let n: usize = faces.iter().map(|f| f.samples).sum();
+        (n > 0).then(|| {
+            faces.iter().map(|f| (f.grey_per_albedo - self.predict(&f.normal)).abs() * f.samples as f64).sum::<f64>()
+                / n as f64
+        })
+    }
+}
+
+/// An edge between two faces the camera sees, whose grey levels under the scene's light differ
+/// by less than this, is taken to show no edge: a step of G grey levels gives Canny (sigma 1) a
+/// gradient of about 0.4 G a pixel, and its upper threshold is 5.
+pub const MIN_EDGE_CONTRAST: f64 = 18.0;
+
+/// The grey levels by which the two faces along line `k` of `model` at `pose` differ under
+/// `light`, where both face the camera; `None` for a silhouette, whose far side is whatever
+/// lies behind.
+pub fn edge_contrast(model: &MatcherModel, k: usize, pose: &Isometry3<f64>, light: &Light) -> Option<f64> {
+    let line = &model.lines[k];
+    let mid = pose * nalgebra::center(&line.a, &line.b);
+    let facing: Vec<Vector3<f64>> =
+        model.faces[k].iter().map(|n| pose.rotation * n).filter(|n| n.dot(&-mid.coords) > 0.0).collect();
+    match facing.as_slice() {
+        [a, b] => Some(model.albedo * (light.predict(a) - light.predict(b)).abs()),
+        _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_light_is_fitted_through_faces_in_shadow_and_past_wrong_ones() {
+        // A light from the side: half the faces see none of it.
+        let truth = Light { ambient: 50.0, towards_light: Vector3::new(160.0, -100.0, -70.0) };
+        let mut rng = crate::matcher::fixtures::Lcg(7);
+        let mut faces: Vec<FaceShade> = (0..14)
+            .map(|_| {
+                let normal = rng.noise(1.0).normalize();
+                FaceShade { normal, grey_per_albedo: truth.predict(&normal) + rng.next() - 0.5, samples: 40 }
+            })
+            .collect();
+        assert!(faces.iter().filter(|f| truth.towards_light.dot(&f.normal) < 0.0).count() >= 4);
+        // Two faces of wrong readings.
+        faces[0].grey_per_albedo += 90.0;
+        faces[1].grey_per_albedo -= 60.0;
+        let light = Light::fit(&faces).expect("a light");
+        assert!((light.ambient - truth.ambient).abs() < 1.0, "{light:?}");
+        assert!((light.towards_light - truth.towards_light).norm() < 3.0, "{light:?}");
+        assert!(Light::fit(&faces[..4]).is_none(), "four faces do not fix a light");
+    }
+
+    #[test]
+    fn many_faces_of_one_top_and_in_shadow_do_not_pass_for_the_ambient_term() {
+        // Side-light seed 30012's faces as they were read (normal, grey per unit albedo,
+        // samples): parts lying flat all show one top (167), many faces lie in shadow (52), a
+        // few sides face the light. Least squares from either start took the top for the
+        // ambient term. The world's light: ambient 0.2 x 255 = 51, diffuse 0.8 x 255 = 204.
+        let read: [([f64; 3], f64, usize); 20] = [
+            ([0.0030, -0.5893, -0.8079], 166.5, 74),
+            ([-0.4397, 0.7249, -0.5303], 51.5, 12),
+            ([0.6797, 0.5938, -0.4306], 132.1, 71),
+            ([0.8728, 0.3951, -0.2865], 172.6, 29),
+            ([-0.4880, 0.7057, -0.5137], 52.4, 29),
+            ([0.0008, -0.5881, -0.8088], 166.5, 60),
+            ([0.2525, 0.7823, -0.5695], 54.2, 34),
+            ([-0.9676, 0.2035, -0.1495], 54.4, 13),
+            ([0.0010, -0.5888, -0.8083], 166.7, 93),
+            ([0.3665, 0.7542, -0.5448], 73.7, 51),
+            ([-0.9304, 0.2948, -0.2178], 51.6, 62),
+            ([0.0036, -0.5867, -0.8098], 166.8, 94),
+            ([-0.0063, -0.5905, -0.8070], 166.6, 66),
+            ([-0.6414, 0.6215, -0.4498], 51.6, 22),
+            ([0.3437, 0.7566, -0.5563], 71.1, 43),
+            ([-0.0008, -0.5901, -0.8073], 166.6, 74),
+            ([-0.1514, 0.7981, -0.5832], 52.1, 17),
+            ([-0.0018, -0.5897, -0.8076], 166.7, 104),
+            ([-0.8676, 0.4025, -0.2920], 89.7, 4),
+            ([0.4972, 0.7002, -0.5123], 97.4, 73),
+        ];
+        let faces: Vec<FaceShade> = read
+            .iter()
+            .map(|(n, g, k)| FaceShade { normal: Vector3::from(*n), grey_per_albedo: *g, samples: *k })
+            .collect();
+        let truth = Light { ambient: 51.0, towards_light: Vector3::new(160.0, -99.0, -69.0) };
+        let light = Light::fit(&faces).expect("a light");
+        assert!((light.ambient - truth.ambient).abs() < 2.0, "{light:?}");
+        assert!((light.towards_light.norm() - 204.0).abs() < 5.0, "{light:?}");
+        assert!(light.towards_light.angle(&truth.towards_light) < 0.05, "{light:?}");
+    }
+}
