@@ -47,9 +47,6 @@ pub fn locate_all(
         }
     }
     if let Some(ev) = image {
-        if let Some(light) = super::shading::scene_light(models, &kept, ev) {
-            faint_looks(models, (scene, p), &searches, &ev.lit(light), (&mut kept, &mut claimed));
-        }
         super::shading::judge_by_shading(models, (scene, p), ev, RIVAL_MAX_SUPPORT, &mut kept);
     }
     kept
@@ -212,31 +209,6 @@ pub(crate) fn hidden_in_part(
         }
     }
     out
-}
-
-/// The second and third looks again, once the reports' faces have given the scene's light
-/// (`ev` carries it): their image checks then leave out the edges between two faces the light
-/// shows alike, which no edgels can run along. Where the light comes from the side, a part's
-/// faces turned from it are as dark as each other and the table, and counted as unseen those
-/// edges failed parts whose lit top stood out.
-fn faint_looks(
-    models: &[MatcherModel],
-    (scene, p): (&[Seg], &MatchParams),
-    searches: &[Search],
-    ev: &ImageEvidence,
-    (kept, claimed): (&mut Vec<Located>, &mut Vec<bool>),
-) {
-    use rayon::prelude::*;
-    if !ev.lines.is_empty() {
-        let (solids, explained) = (solids_of(models, kept), explained_by(models, kept, ev));
-        let second: Vec<Located> = models
-            .par_iter()
-            .flat_map(|m| super::second_look::locate(m, scene, claimed, p, ev, (&solids, &explained)))
-            .collect();
-        resolve(models, (scene, p), second, kept, claimed, Some(ev));
-    }
-    let third = hidden_in_part(models, searches, (kept, claimed), p, ev);
-    resolve(models, (scene, p), third, kept, claimed, Some(ev));
 }
 
 /// Adds `reports` to `kept`, best first, unless one reuses over 30% of lines already claimed or

@@ -164,21 +164,6 @@ fn reading_shades(
     face_shades(model, pose, ev, &others)
 }
 
-/// The light the faces of all `kept` reports agree on ([`Light::fit`]), if they fix one.
-pub fn scene_light(models: &[MatcherModel], kept: &[super::model::Located], ev: &ImageEvidence) -> Option<Light> {
-    let solids = solids_of(models, kept);
-    let faces: Vec<FaceShade> = kept
-        .iter()
-        .enumerate()
-        .filter_map(|(i, l)| {
-            let m = models.iter().find(|m| m.name == l.model)?;
-            Some(reading_shades(i, m, &l.cam_from_model, ev, &solids))
-        })
-        .flatten()
-        .collect();
-    Light::fit(&faces)
-}
-
 /// A report is looked at again turned over when its faces lie this far (grey levels per unit
 /// albedo, on average over its samples) from the scene's light.
 pub const TURN_MISFIT: f64 = 5.0;
@@ -305,7 +290,6 @@ mod tests {
     use super::*;
     use crate::front_end::canny::{CannyParams, canny};
     use crate::matcher::fixtures::{camera_at, model};
-    use crate::matcher::light::{MIN_EDGE_CONTRAST, edge_contrast};
     use nalgebra::{Point3, UnitQuaternion, Vector3};
 
     /// Grey levels per unit albedo of the test scenes' light: a face of normal `n` (`cam`).
@@ -394,35 +378,5 @@ mod tests {
         for m in turned {
             assert!(m > TURN_MISFIT, "a turned wedge fits the light within {m:.1}");
         }
-    }
-
-    #[test]
-    fn under_the_scenes_light_an_edge_between_two_faces_lit_alike_is_not_asked_of_the_image() {
-        let (cam, objects) = scene();
-        let (block, pose) = (&objects[0].0, objects[0].1);
-        // The light behind two of the block's three faces the camera sees: they show the
-        // ambient term alone, and the edge between them no step.
-        let facing: Vec<Vector3<f64>> =
-            [Vector3::x(), -Vector3::x(), Vector3::y(), -Vector3::y(), Vector3::z(), -Vector3::z()]
-                .map(|n| pose.rotation * n)
-                .into_iter()
-                .filter(|n| n.dot(&-pose.translation.vector) > 0.0)
-                .collect();
-        assert_eq!(facing.len(), 3);
-        let towards = (facing[2] * 2.0 - facing[0] - facing[1]).normalize() * 180.0;
-        let light = Light { ambient: 60.0, towards_light: towards };
-        assert!(facing.iter().filter(|n| towards.dot(n) <= 0.0).count() == 2, "two faces in shadow");
-        // A bright background, so that the faces in shadow stand out against it.
-        let edges = canny(&render(&cam, &[(block, pose)], &light, 160), &CannyParams::default());
-        let ev = ImageEvidence::new(&cam, &edges, Vec::new());
-        let faint: Vec<usize> = (0..block.lines.len())
-            .filter(|&k| edge_contrast(block, k, &pose, &light).is_some_and(|g| g < MIN_EDGE_CONTRAST))
-            .collect();
-        assert_eq!(faint.len(), 1, "one edge between the faces in shadow");
-        let own = Solid::new(block, &pose);
-        let (plain, _) = super::super::verify::image_support_unhidden(block, &pose, &ev, &[&own]);
-        let (lit, _) = super::super::verify::image_support_unhidden(block, &pose, &ev.lit(light), &[&own]);
-        assert!(lit > 0.97, "with the light, what is asked of the image runs along edgels: {lit:.2}");
-        assert!(plain < lit - 0.05, "without it, the faint edge counts as unseen: {plain:.2}");
     }
 }

@@ -17,9 +17,6 @@ pub struct ImageEvidence<'a> {
     pub lines: Vec<ImageLine>,
     /// The edgels spread into an orientation mask, so that each sample is one look-up.
     mask: std::sync::Arc<EdgeMask>,
-    /// The scene's light, once the reports' faces have given it: edges between two faces it
-    /// lights alike show no edgels, and the checks leave them out.
-    pub(crate) light: Option<super::light::Light>,
 }
 
 /// A straight line of the left image, in pixels, with the plane through the camera centre that
@@ -36,17 +33,12 @@ const MIN_IMAGE_LINE_PX: f64 = 20.0;
 
 impl<'a> ImageEvidence<'a> {
     pub fn new(cam: &'a PinholeCamera, edges: &'a EdgeMap, lines: Vec<ImageLine>) -> ImageEvidence<'a> {
-        ImageEvidence { cam, edges, lines, mask: std::sync::Arc::new(EdgeMask::of(edges)), light: None }
-    }
-
-    /// The same evidence judged under `light` (see [`ImageEvidence::light`]).
-    pub(crate) fn lit(&self, light: super::light::Light) -> ImageEvidence<'a> {
-        ImageEvidence { light: Some(light), ..self.with_lines(self.lines.clone()) }
+        ImageEvidence { cam, edges, lines, mask: std::sync::Arc::new(EdgeMask::of(edges)) }
     }
 
     /// The same edgels with other image lines.
     pub(crate) fn with_lines(&self, lines: Vec<ImageLine>) -> ImageEvidence<'a> {
-        ImageEvidence { cam: self.cam, edges: self.edges, lines, mask: self.mask.clone(), light: self.light }
+        ImageEvidence { cam: self.cam, edges: self.edges, lines, mask: self.mask.clone() }
     }
 
     /// The evidence of one front-end run on the left camera `cam`.
@@ -89,35 +81,10 @@ fn facing_lines<'m>(
     pose: &'m Isometry3<f64>,
     cam: &'m PinholeCamera,
 ) -> impl Iterator<Item = ([nalgebra::Point3<f64>; 2], [Point2<f64>; 2])> + 'm {
-    facing_lines_numbered(model, pose, cam).map(|(_, ends, px)| (ends, px))
-}
-
-/// [`facing_lines`], each with its index in the model.
-fn facing_lines_numbered<'m>(
-    model: &'m MatcherModel,
-    pose: &'m Isometry3<f64>,
-    cam: &'m PinholeCamera,
-) -> impl Iterator<Item = (usize, [nalgebra::Point3<f64>; 2], [Point2<f64>; 2])> + 'm {
-    model.lines.iter().enumerate().filter(|(k, _)| model.faces_camera(*k, pose)).filter_map(move |(k, line)| {
+    model.lines.iter().enumerate().filter(|(k, _)| model.faces_camera(*k, pose)).filter_map(move |(_, line)| {
         let (a3, b3) = (pose * line.a, pose * line.b);
-        Some((k, [a3, b3], [cam.project_cam(&a3)?, cam.project_cam(&b3)?]))
+        Some(([a3, b3], [cam.project_cam(&a3)?, cam.project_cam(&b3)?]))
     })
-}
-
-/// [`facing_lines`] less those the image cannot show under the evidence's light, if it has one
-/// (two faces lit alike meeting there, [`super::light::MIN_EDGE_CONTRAST`]).
-fn shown_lines<'m>(
-    model: &'m MatcherModel,
-    pose: &'m Isometry3<f64>,
-    ev: &'m ImageEvidence,
-) -> impl Iterator<Item = ([nalgebra::Point3<f64>; 2], [Point2<f64>; 2])> + 'm {
-    facing_lines_numbered(model, pose, ev.cam)
-        .filter(move |(k, _, _)| {
-            ev.light.as_ref().is_none_or(|light| {
-                super::light::edge_contrast(model, *k, pose, light).is_none_or(|g| g >= super::light::MIN_EDGE_CONTRAST)
-            })
-        })
-        .map(|(_, ends, px)| (ends, px))
 }
 
 /// The fraction of the projected, camera-facing wireframe (by length in the image) that runs
@@ -146,7 +113,7 @@ pub fn image_support_at_least(
 ) -> Option<f64> {
     let mut segments = Vec::new();
     let mut all = 0.0;
-    for (_, [a, b]) in shown_lines(model, pose, ev) {
+    for (_, [a, b]) in facing_lines(model, pose, ev.cam) {
         let len = (b - a).norm();
         if len < 2.0 * STEP_PX {
             continue;
@@ -186,7 +153,7 @@ pub fn image_support_unhidden(
     solids: &[&super::occlusion::Solid],
 ) -> (f64, f64) {
     let (mut seen, mut unhidden, mut all) = (0.0, 0.0, 0.0);
-    for ([a3, b3], [a, b]) in shown_lines(model, pose, ev) {
+    for ([a3, b3], [a, b]) in facing_lines(model, pose, ev.cam) {
         let len = (b - a).norm();
         if len < 2.0 * STEP_PX {
             continue;
