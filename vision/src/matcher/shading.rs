@@ -41,8 +41,9 @@ pub fn face_shades(
     solids: &[&Solid],
 ) -> Vec<FaceShade> {
     let albedo = model.albedo.max(1e-3);
-    let own = Solid::new(model, pose);
-    let hidden = |p: &Point3<f64>| own.hides(p) || solids.iter().any(|s| s.hides(p));
+    // A convex solid hides none of its own surface from the camera.
+    let own = (!is_convex(model)).then(|| Solid::new(model, pose));
+    let hidden = |p: &Point3<f64>| own.as_ref().is_some_and(|o| o.hides(p)) || solids.iter().any(|s| s.hides(p));
     // Per distinct face normal (model frame), the grey levels read.
     let mut faces: Vec<(Vector3<f64>, Vec<f64>)> = Vec::new();
     for (k, line) in model.lines.iter().enumerate().take(model.first_marking) {
@@ -98,6 +99,15 @@ pub fn face_shades(
             samples: g.len(),
         })
         .collect()
+}
+
+/// Whether every corner of `model`'s surface lies on or behind the plane of each of its
+/// triangles.
+fn is_convex(model: &MatcherModel) -> bool {
+    model.triangles.iter().all(|t| {
+        let n = (t[1] - t[0]).cross(&(t[2] - t[0]));
+        model.triangles.iter().flatten().all(|p| n.dot(&(p - t[0])) <= 1e-9)
+    })
 }
 
 /// The grey level on side `into` (an image direction) of the edgel that runs along `dir` near
