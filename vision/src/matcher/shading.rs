@@ -228,6 +228,10 @@ pub(crate) fn judge_by_shading(
     max_support: f64,
     kept: &mut Vec<super::model::Located>,
 ) {
+    // Only reports on little 3D evidence are judged: with none, the light is not needed.
+    if kept.iter().all(|r| r.support_fraction >= max_support) {
+        return;
+    }
     let model_of = |name: &str| models.iter().find(|m| m.name == name);
     let solids = solids_of(models, kept);
     let shades_of = |i: usize, model: &MatcherModel, pose: &Isometry3<f64>| reading_shades(i, model, pose, ev, &solids);
