@@ -38,6 +38,11 @@ pub struct MatcherModel {
     /// Outward normals of the faces meeting along each line: the line can be seen only from
     /// where one of them faces the camera.
     pub faces: Vec<Vec<Vector3<f64>>>,
+    /// Per line, each face along it and where it lies beside the line: where the image shows
+    /// that face beside the line's edge.
+    pub(crate) face_sides: Vec<Vec<FaceSide>>,
+    /// Whether the solid is convex, and so hides none of its own surface from a camera.
+    pub(crate) convex: bool,
     /// The solid's surface, triangle by triangle (model frame).
     pub triangles: Vec<[Point3<f64>; 3]>,
     /// Points filling the solid, on a grid (model frame): what two reports may not share.
@@ -65,7 +70,7 @@ impl MatcherModel {
     pub fn from_model(m: &mesh::Model) -> MatcherModel {
         // A pattern's lines (the flag's checker) are seen as edges too.
         let lines: Vec<Seg> = m.wireframe.iter().chain(&m.markings).map(|s| Seg::new(s.a, s.b)).collect();
-        let faces = lines.iter().map(|l| faces_along(&m.mesh, l)).collect();
+        let faces: Vec<Vec<Vector3<f64>>> = lines.iter().map(|l| faces_along(&m.mesh, l)).collect();
         let n = (2 * lines.len()).max(1) as f64;
         let centre = Point3::from(lines.iter().map(|l| l.a.coords + l.b.coords).sum::<Vector3<f64>>() / n);
         let radius = lines.iter().flat_map(|l| [l.a, l.b]).map(|p| (p - centre).norm()).fold(0.0, f64::max);
@@ -73,7 +78,10 @@ impl MatcherModel {
         longest_first.sort_by(|&a, &b| lines[b].len.total_cmp(&lines[a].len));
         let triangles: Vec<[Point3<f64>; 3]> = (0..m.mesh.triangles.len()).map(|t| m.mesh.corners(t)).collect();
         let bounds = m.mesh.bounds().unwrap_or((Point3::origin(), Point3::origin()));
+        let face_sides = lines.iter().zip(&faces).map(|(l, n)| face_sides(l, n, &triangles)).collect();
         MatcherModel {
+            face_sides,
+            convex: is_convex(&triangles),
             interior: interior_points(bounds, &triangles),
             bounds,
             sphere: (centre, radius),
@@ -98,6 +106,51 @@ fn mean_albedo(mesh: &mesh::TriMesh) -> f64 {
         return 0.5;
     }
     mesh.albedo.iter().map(|a| *a as f64).sum::<f64>() / mesh.albedo.len() as f64
+}
+
+/// A face along a line: its outward normal, the unit vector from the line into the face
+/// (perpendicular to the line), and how far the face reaches that way (metres).
+pub(crate) type FaceSide = (Vector3<f64>, Vector3<f64>, f64);
+
+/// For each face along `line` (of outward `normals`) of the surface `triangles`: its normal,
+/// the unit vector from the line into the face, perpendicular to the line, and how far the face
+/// reaches that way (metres).
+fn face_sides(line: &Seg, normals: &[Vector3<f64>], triangles: &[[Point3<f64>; 3]]) -> Vec<FaceSide> {
+    let off_line = |p: &Point3<f64>| {
+        let w = p - line.a;
+        w - line.dir * w.dot(&line.dir)
+    };
+    let normal_of = |t: &[Point3<f64>; 3]| {
+        let n = (t[1] - t[0]).cross(&(t[2] - t[0]));
+        (n.norm() > 1e-12).then(|| n.normalize())
+    };
+    let mut out = Vec::new();
+    for n in normals {
+        let in_face = |t: &&[Point3<f64>; 3]| {
+            normal_of(t).is_some_and(|tn| (tn - n).norm() < 1e-6) && (t[0] - line.a).dot(n).abs() < 1e-7
+        };
+        let side = triangles.iter().filter(in_face).find_map(|t| {
+            let on: Vec<bool> = t.iter().map(|p| off_line(p).norm() < 1e-7).collect();
+            if on.iter().filter(|o| **o).count() != 2 {
+                return None;
+            }
+            let third = t.iter().zip(&on).find(|(_, o)| !**o)?.0;
+            Some(off_line(third).normalize())
+        });
+        if let Some(side) = side {
+            let reach = triangles.iter().filter(in_face).flatten().map(|p| (p - line.a).dot(&side)).fold(0.0, f64::max);
+            out.push((*n, side, reach));
+        }
+    }
+    out
+}
+
+/// Whether every corner of the surface `triangles` lies on or behind the plane of each of them.
+fn is_convex(triangles: &[[Point3<f64>; 3]]) -> bool {
+    triangles.iter().all(|t| {
+        let n = (t[1] - t[0]).cross(&(t[2] - t[0]));
+        triangles.iter().flatten().all(|p| n.dot(&(p - t[0])) <= 1e-9)
+    })
 }
 
 /// Spacing of the grid of points that fills a model (metres).

@@ -42,7 +42,7 @@ pub fn face_shades(
 ) -> Vec<FaceShade> {
     let albedo = model.albedo.max(1e-3);
     // A convex solid hides none of its own surface from the camera.
-    let own = (!is_convex(model)).then(|| Solid::new(model, pose));
+    let own = (!model.convex).then(|| Solid::new(model, pose));
     let hidden = |p: &Point3<f64>| own.as_ref().is_some_and(|o| o.hides(p)) || solids.iter().any(|s| s.hides(p));
     // Per distinct face normal (model frame), the grey levels read.
     let mut faces: Vec<(Vector3<f64>, Vec<f64>)> = Vec::new();
@@ -54,7 +54,7 @@ pub fn face_shades(
             continue;
         }
         let dir = (b - a) / len;
-        for (normal, side, reach) in face_sides(model, k) {
+        for &(normal, side, reach) in &model.face_sides[k] {
             let (n_cam, side_cam) = (pose.rotation * normal, pose.rotation * side);
             let mid = nalgebra::center(&a3, &b3);
             if n_cam.dot(&-mid.coords) <= 0.0 {
@@ -101,15 +101,6 @@ pub fn face_shades(
         .collect()
 }
 
-/// Whether every corner of `model`'s surface lies on or behind the plane of each of its
-/// triangles.
-fn is_convex(model: &MatcherModel) -> bool {
-    model.triangles.iter().all(|t| {
-        let n = (t[1] - t[0]).cross(&(t[2] - t[0]));
-        model.triangles.iter().flatten().all(|p| n.dot(&(p - t[0])) <= 1e-9)
-    })
-}
-
 /// The grey level on side `into` (an image direction) of the edgel that runs along `dir` near
 /// image point `q`, if one does.
 fn grey_beside(ev: &ImageEvidence, q: Point2, dir: Vector2<f64>, into: Vector2<f64>) -> Option<f64> {
@@ -120,41 +111,6 @@ fn grey_beside(ev: &ImageEvidence, q: Point2, dir: Vector2<f64>, into: Vector2<f
 }
 
 type Point2 = nalgebra::Point2<f64>;
-
-/// For each face along line `k` of `model`: its outward normal, the unit vector (model frame)
-/// from the line into the face, perpendicular to the line, and how far the face reaches that
-/// way (metres).
-fn face_sides(model: &MatcherModel, k: usize) -> Vec<(Vector3<f64>, Vector3<f64>, f64)> {
-    let line = &model.lines[k];
-    let off_line = |p: &Point3<f64>| {
-        let w = p - line.a;
-        w - line.dir * w.dot(&line.dir)
-    };
-    let normal_of = |t: &[Point3<f64>; 3]| {
-        let n = (t[1] - t[0]).cross(&(t[2] - t[0]));
-        (n.norm() > 1e-12).then(|| n.normalize())
-    };
-    let mut out = Vec::new();
-    for n in &model.faces[k] {
-        let in_face = |t: &&[Point3<f64>; 3]| {
-            normal_of(t).is_some_and(|tn| (tn - n).norm() < 1e-6) && (t[0] - line.a).dot(n).abs() < 1e-7
-        };
-        let side = model.triangles.iter().filter(in_face).find_map(|t| {
-            let on: Vec<bool> = t.iter().map(|p| off_line(p).norm() < 1e-7).collect();
-            if on.iter().filter(|o| **o).count() != 2 {
-                return None;
-            }
-            let third = t.iter().zip(&on).find(|(_, o)| !**o)?.0;
-            Some(off_line(third).normalize())
-        });
-        if let Some(side) = side {
-            let reach =
-                model.triangles.iter().filter(in_face).flatten().map(|p| (p - line.a).dot(&side)).fold(0.0, f64::max);
-            out.push((*n, side, reach));
-        }
-    }
-    out
-}
 
 /// The solids of `kept` (`None` for a model not among `models`), in order.
 fn solids_of(models: &[MatcherModel], kept: &[super::model::Located]) -> Vec<Option<Solid>> {
