@@ -108,6 +108,62 @@ pub fn disparity_stats(
     (workspace, on_arm)
 }
 
+/// What became of each left edgel on the workspace (not the arm) that has a true disparity:
+/// matched within 0.5 px of it, matched further off, unmatched though a right edgel within
+/// 1 px of the true disparity was a candidate (lost to a rival in PMF's later steps), or
+/// unmatched for the candidate test its would-be partners failed ([`pmf::Refusal`]). Counts by
+/// name; the test that reads them says where the front end loses edges.
+pub fn edgel_fates(
+    fe: &FrontEnd,
+    truth: &TruthScene,
+    calib: &StereoCalibration,
+    arm: &ArmMask,
+) -> std::collections::BTreeMap<String, usize> {
+    use vision::front_end::pmf::{PmfParams, refusal};
+    let rect = Rectification::new(calib);
+    let (disparity_min, disparity_max) = vision::front_end::disparity_range(
+        &rect,
+        vision::front_end::WORKSPACE_DEPTH_M.0,
+        vision::front_end::WORKSPACE_DEPTH_M.1,
+    );
+    let params = PmfParams { disparity_min, disparity_max, ..PmfParams::default() };
+    // The sliced front end keeps no whole-image list of rectified right edgels.
+    let right = rect.rectify_edgels(vision::front_end::rectify::Side::Right, &fe.right.edgels);
+    let mut matched = vec![None; fe.left.edgels.len()];
+    // PMF once more over the whole image, to tell a candidate PMF refused from a match dropped
+    // after it (by figural continuity along the right strings or for lying on no 3D line).
+    let mut pmf_choice = vec![None; fe.left.edgels.len()];
+    for m in vision::front_end::pmf::pmf(&fe.left_rectified, &right, &fe.left_strings, &params) {
+        pmf_choice[m.left as usize] = Some(m.disparity);
+    }
+    for m in &fe.matches {
+        matched[m.left as usize] = Some(m.disparity);
+    }
+    let mut fates = std::collections::BTreeMap::new();
+    for (i, e) in fe.left.edgels.iter().enumerate() {
+        if arm.covers(e.x as f64, e.y as f64) {
+            continue;
+        }
+        let Some(d) = truth.disparity(&calib.left, &rect, e.x as f64, e.y as f64, e.orientation as f64) else {
+            continue;
+        };
+        let fate = match matched[i] {
+            Some(md) if (md as f64 - d).abs() <= 0.5 => "matched_within_0_5px".to_string(),
+            Some(_) => "matched_off".to_string(),
+            None => match refusal(&fe.left_rectified[i], &right, d as f32, 1.0, &params) {
+                None => match pmf_choice[i] {
+                    Some(pd) if (pd as f64 - d).abs() <= 0.5 => "dropped_after_pmf".to_string(),
+                    Some(_) => "rival_won".to_string(),
+                    None => "candidate_unmatched".to_string(),
+                },
+                Some(why) => format!("{why:?}"),
+            },
+        };
+        *fates.entry(fate).or_insert(0) += 1;
+    }
+    fates
+}
+
 /// How the 3D lines compare with the models' true feature edges.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct LineStats {

@@ -2,7 +2,7 @@
 
 use super::output::emit;
 use clap::Subcommand;
-use marvin::eval::{ArmMask, DisparityStats, LineStats, disparity_stats, line_stats};
+use marvin::eval::{ArmMask, DisparityStats, LineStats, disparity_stats, edgel_fates, line_stats};
 use marvin::truth::TruthScene;
 use sim::render::{Light, RenderScene, render_stereo};
 use sim::{Scenario, Scene};
@@ -20,7 +20,12 @@ pub enum EvalTarget {
     /// `coverage` (of visible feature-edge length in pieces >= 20 px long in the image, the part
     /// a 3D line runs along within 3 mm and 10 deg), `timings_ms` (median per stage: with slices,
     /// each stage's processor time summed over the slices, then `slices` and `join` wall time),
-    /// `unsettled_scenes` (scenes that did not come to rest, evaluated anyway).
+    /// `unsettled_scenes` (scenes that did not come to rest, evaluated anyway), `left_edgels`
+    /// (what became of the left edgels with a true disparity, as fractions: matched within 0.5
+    /// px or off; refused by a test of PMF's candidate selection -- `NearRaster`, `NoPartner`
+    /// (no right edgel there), `OutOfRange`, `ContrastSign`, `ContrastRatio`, `Sides`,
+    /// `Orientation`; or, with a true candidate, `candidate_unmatched` by PMF, `rival_won`, or
+    /// `dropped_after_pmf` (right-string continuity, or on no 3D line)).
     Vision {
         world: PathBuf,
         #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u64).range(1..=super::args::MAX_COUNT))]
@@ -134,6 +139,7 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
     let mut lines = LineStats::default();
     let mut timings: BTreeMap<&'static str, Vec<f64>> = BTreeMap::new();
     let mut unsettled = 0;
+    let mut fates: BTreeMap<String, usize> = BTreeMap::new();
     for k in 0..scenes {
         let s = seed + k;
         let (scene, settled) = super::output::settle(&scn, s);
@@ -156,6 +162,9 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
         let arm = ArmMask::from_ids(l.width, l.height, &l.ids);
         let (stats, arm_stats) = disparity_stats(&fe, &truth, &calib, &arm);
         let line = line_stats(&fe, &scene, &scn.library, &calib, &l.depth, &arm);
+        for (fate, n) in edgel_fates(&fe, &truth, &calib, &arm) {
+            *fates.entry(fate).or_insert(0) += n;
+        }
         eprintln!(
             "scene {}/{scenes} (seed {s}): {} matches, {:.3} within 0.5 px, {:.3} wrong; {} 3D lines, ends {:.2} mm median, coverage {:.2}",
             k + 1,
@@ -197,10 +206,17 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
             "wrong_matches": on_arm.wrong_fraction(),
             "lines3d_per_scene": lines.arm_lines as f64 / scenes.max(1) as f64,
         },
+        "left_edgels": fractions_of(&fates),
         "timings_ms": medians,
         "unsettled_scenes": unsettled,
     });
     if json { emit(&report.to_string()) } else { emit(&serde_json::to_string_pretty(&report)?) }
+}
+
+/// Each count as a fraction of their total.
+fn fractions_of(counts: &BTreeMap<String, usize>) -> BTreeMap<String, f64> {
+    let total = counts.values().sum::<usize>().max(1) as f64;
+    counts.iter().map(|(k, &n)| (k.clone(), n as f64 / total)).collect()
 }
 
 /// A seeded scene taken through rendering and the (sliced) front end.

@@ -178,6 +178,49 @@ fn one_surface_alike(l: &Edgel, r: &Edgel, tolerance: f32) -> bool {
     (l.sides[0] - r.sides[0]).abs() <= tolerance || (l.sides[1] - r.sides[1]).abs() <= tolerance
 }
 
+/// Why a right edgel is not a candidate for a left one: the tests of candidate selection, in
+/// the order they are made. `marvin eval vision` counts them for the left edgels left unmatched.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Refusal {
+    /// The left edgel runs too nearly along the raster.
+    NearRaster,
+    /// No right edgel on the raster near the disparity asked about (none found, or it runs
+    /// along the raster).
+    NoPartner,
+    OutOfRange,
+    ContrastSign,
+    ContrastRatio,
+    Sides,
+    Orientation,
+}
+
+/// The disparity at which right edgel `r` is a candidate for left edgel `l`, or the first test
+/// it fails (the right edgel is on `l`'s raster band and does not run along it).
+fn judge(l: &Edgel, ls: &Shape, r: &Edgel, rs: &Shape, p: &PmfParams) -> Result<f32, Refusal> {
+    // Where the right edge crosses the left edgel's raster.
+    let disparity = l.x - (r.x + (l.y - r.y) * rs.slope);
+    if disparity < p.disparity_min || disparity > p.disparity_max {
+        return Err(Refusal::OutOfRange);
+    }
+    // Contrast sign across the raster.
+    if ls.bright_right != rs.bright_right {
+        return Err(Refusal::ContrastSign);
+    }
+    let ratio = r.contrast / l.contrast;
+    if ratio < p.contrast_ratio.0 || ratio > p.contrast_ratio.1 {
+        return Err(Refusal::ContrastRatio);
+    }
+    if !one_surface_alike(l, r, p.side_tolerance) {
+        return Err(Refusal::Sides);
+    }
+    let turn = angle_diff(l.orientation, r.orientation);
+    let along_edge_gradient = (ls.slope - rs.slope).abs();
+    let compatible = turn < p.orientation_accept
+        || (turn <= p.orientation_reject && along_edge_gradient <= p.orientation_gradient_limit);
+    if compatible { Ok(disparity) } else { Err(Refusal::Orientation) }
+}
+
 fn candidates(left: &[Edgel], right: &[Edgel], p: &PmfParams) -> (Vec<usize>, Vec<Candidate>) {
     let rasters = Rasters::new(right);
     let (left_shape, right_shape) = (shapes(left, p), shapes(right, p));
@@ -194,33 +237,37 @@ fn candidates(left: &[Edgel], right: &[Edgel], p: &PmfParams) -> (Vec<usize>, Ve
             if (r.y - l.y).abs() > 0.5 || rs.flat {
                 continue;
             }
-            // Where the right edge crosses the left edgel's raster.
-            let disparity = l.x - (r.x + (l.y - r.y) * rs.slope);
-            if disparity < p.disparity_min || disparity > p.disparity_max {
-                continue;
-            }
-            // Contrast sign across the raster.
-            if ls.bright_right != rs.bright_right {
-                continue;
-            }
-            let ratio = r.contrast / l.contrast;
-            if ratio < p.contrast_ratio.0 || ratio > p.contrast_ratio.1 {
-                continue;
-            }
-            if !one_surface_alike(l, r, p.side_tolerance) {
-                continue;
-            }
-            let turn = angle_diff(l.orientation, r.orientation);
-            let along_edge_gradient = (ls.slope - rs.slope).abs();
-            let compatible = turn < p.orientation_accept
-                || (turn <= p.orientation_reject && along_edge_gradient <= p.orientation_gradient_limit);
-            if compatible {
+            if let Ok(disparity) = judge(l, ls, r, rs, p) {
                 out.push(Candidate { right: ri, disparity, strength: 0.0, alive: true });
             }
         }
     }
     offsets.push(out.len());
     (offsets, out)
+}
+
+/// Why left edgel `l` has no candidate within `within` px of `disparity` among `right` (all
+/// rectified): the test that the right edgels there came furthest through before failing, or
+/// `None` if one of them is a candidate. For diagnosis; it scans every right edgel.
+pub fn refusal(l: &Edgel, right: &[Edgel], disparity: f32, within: f32, p: &PmfParams) -> Option<Refusal> {
+    let shape = |e: &Edgel| shapes(std::slice::from_ref(e), p)[0];
+    let ls = shape(l);
+    if ls.flat {
+        return Some(Refusal::NearRaster);
+    }
+    let mut furthest = Refusal::NoPartner;
+    for r in right.iter().filter(|r| (r.y - l.y).abs() <= 0.5) {
+        let rs = shape(r);
+        let crossing = l.x - (r.x + (l.y - r.y) * rs.slope);
+        if rs.flat || (crossing - disparity).abs() > within {
+            continue;
+        }
+        match judge(l, &ls, r, &rs, p) {
+            Ok(_) => return None,
+            Err(why) => furthest = furthest.max(why),
+        }
+    }
+    Some(furthest)
 }
 
 /// A neighbour of a left edgel, as its candidates' support needs it.
@@ -566,6 +613,30 @@ mod tests {
                 s
             })
             .collect()
+    }
+
+    #[test]
+    fn refusal_names_the_test_a_partner_fails() {
+        let p = PmfParams { disparity_min: 0.0, disparity_max: 100.0, ..PmfParams::default() };
+        let l = edge(100.0, 10, 1, 0.2, true)[0];
+        let partner = edge(60.0, 10, 1, 0.2, true)[0];
+        assert_eq!(refusal(&l, &[partner], 40.0, 1.0, &p), None);
+        // Nothing near the disparity asked about, or only something 5 px off.
+        assert_eq!(refusal(&l, &[], 40.0, 1.0, &p), Some(Refusal::NoPartner));
+        assert_eq!(refusal(&l, &[partner], 45.0, 1.0, &p), Some(Refusal::NoPartner));
+        // Dark to the right where the left edge is bright to the right.
+        let flipped = edge(60.0, 10, 1, 0.2, false)[0];
+        assert_eq!(refusal(&l, &[flipped], 40.0, 1.0, &p), Some(Refusal::ContrastSign));
+        let faint = Edgel { contrast: 5.0, ..partner };
+        assert_eq!(refusal(&l, &[faint], 40.0, 1.0, &p), Some(Refusal::ContrastRatio));
+        let other_surfaces = Edgel { sides: [20.0, 60.0], ..partner };
+        assert_eq!(refusal(&l, &[other_surfaces], 40.0, 1.0, &p), Some(Refusal::Sides));
+        // Of several would-be partners, the one that came furthest names the refusal.
+        assert_eq!(refusal(&l, &[flipped, other_surfaces], 40.0, 1.0, &p), Some(Refusal::Sides));
+        let far = PmfParams { disparity_min: 50.0, ..p };
+        assert_eq!(refusal(&l, &[partner], 40.0, 1.0, &far), Some(Refusal::OutOfRange));
+        let along_raster = edge(100.0, 10, 1, 10.0, true)[0];
+        assert_eq!(refusal(&along_raster, &[partner], 40.0, 1.0, &p), Some(Refusal::NearRaster));
     }
 
     #[test]
