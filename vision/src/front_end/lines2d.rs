@@ -112,7 +112,7 @@ fn split(pts: &[[f32; 2]], a: usize, b: usize, tol: f32, out: &mut Vec<(usize, u
 }
 
 /// Fits `pts[a..=b]`, trimming end edgels off the fit, and makes a line if enough remain.
-fn fit_piece(pts: &[[f32; 2]], mut a: usize, mut b: usize, string: u32, p: &Lines2dParams) -> Option<Line2> {
+pub(crate) fn fit_piece(pts: &[[f32; 2]], mut a: usize, mut b: usize, string: u32, p: &Lines2dParams) -> Option<Line2> {
     loop {
         if b + 1 < a + p.min_edgels {
             return None;

@@ -1,7 +1,9 @@
 //! 3D geometry: along each 2D line (fitted in rectified left coordinates), the matched edgels
 //! give (arc length, disparity) pairs; a robust straight-line fit of disparity against arc
 //! length, projected through the calibration at the line's ends, gives a 3D segment in the
-//! `cam` frame with the depth uncertainty of each end.
+//! `cam` frame with the depth uncertainty of each end. A 2D line along which the disparity
+//! breaks (two edges at different depths that run on in one straight image line) is first
+//! split at the break ([`split_at_depth_breaks`]).
 
 use super::lines2d::Line2;
 use super::pmf::Match;
@@ -74,6 +76,130 @@ fn linear_fit(points: &[(f64, f64)]) -> Option<(f64, f64, f64, f64, f64)> {
     Some((alpha, beta, var, ms, sss))
 }
 
+/// The matched edgels along a 2D line as (arc length from its start, disparity, edgel), in
+/// string order; `None` for a line too near the rasters (or too short) to carry disparities.
+fn disparities_along(
+    line: &Line2,
+    strings: &[EdgeString],
+    left_rect: &[super::canny::Edgel],
+    disparity: &[f64],
+    p: &Lines3dParams,
+) -> Option<Vec<(f64, f64, u32)>> {
+    let dir = line.direction();
+    if (dir[1].abs() as f64) < (p.min_angle_to_raster as f64).sin() || line.length() < 1.0 {
+        return None;
+    }
+    let string = &strings[line.string as usize].edgels;
+    let along = |i: u32| {
+        let e = &left_rect[i as usize];
+        ((e.x - line.start[0]) * dir[0] + (e.y - line.start[1]) * dir[1]) as f64
+    };
+    Some(
+        string[line.first as usize..=line.last as usize]
+            .iter()
+            .filter(|&&i| !disparity[i as usize].is_nan())
+            .map(|&i| (along(i), disparity[i as usize], i))
+            .collect(),
+    )
+}
+
+/// A line's fit must leave at least this share of its matches within `max_residual` for it
+/// not to be looked at for a break in depth.
+const BREAK_INLIERS: f64 = 0.85;
+/// Each side of a break must fit a straight line this well (rms, pixels of disparity)...
+const BREAK_RMS: f64 = 0.35;
+/// ...and the break must leave at least this much more of the matches on a fit.
+const BREAK_GAIN: f64 = 1.25;
+
+/// 2D lines split where the disparity along them breaks: two edges at different depths that
+/// happen to run on in one straight line in the left image (a standing part's side edge
+/// continued by the edge of a part behind it) are two 3D lines, and a single straight fit of
+/// disparity against arc length keeps neither. Where one fit leaves under [`BREAK_INLIERS`] of
+/// the matches, the break that fits both sides best (each side by least squares, over every
+/// split of the matches in string order that leaves `min_matches` either side) is taken if
+/// both sides fit within [`BREAK_RMS`] and between them keep [`BREAK_GAIN`] times the matches
+/// the single fit did; each side is then fitted as a 2D line of its own.
+pub fn split_at_depth_breaks(
+    lines: Vec<Line2>,
+    strings: &[EdgeString],
+    left_rect: &[super::canny::Edgel],
+    matches: &[Match],
+    p: &Lines3dParams,
+    p2: &super::lines2d::Lines2dParams,
+) -> Vec<Line2> {
+    let mut disparity = vec![f64::NAN; left_rect.len()];
+    for m in matches {
+        disparity[m.left as usize] = m.disparity as f64;
+    }
+    let mut out = Vec::with_capacity(lines.len());
+    for line in lines {
+        let pieces = disparities_along(&line, strings, left_rect, &disparity, p)
+            .and_then(|points| depth_break(&points, p))
+            .and_then(|last_before| split_line(&line, strings, left_rect, last_before, p2));
+        match pieces {
+            Some(pieces) => out.extend(pieces),
+            None => out.push(line),
+        }
+    }
+    out
+}
+
+/// How many of `points` lie within `max_residual` of a straight fit (two passes, as
+/// [`fit_lines3d`] fits).
+fn inliers_of_one_fit(points: &[(f64, f64)], max_residual: f64) -> usize {
+    let mut kept: Vec<(f64, f64)> = points.to_vec();
+    for _ in 0..2 {
+        let Some((alpha, beta, ..)) = linear_fit(&kept) else { return 0 };
+        kept = points.iter().copied().filter(|&(s, d)| (d - alpha - beta * s).abs() <= max_residual).collect();
+    }
+    kept.len()
+}
+
+/// The edgel after which the disparity along a line breaks, if it does (see
+/// [`split_at_depth_breaks`]).
+fn depth_break(points: &[(f64, f64, u32)], p: &Lines3dParams) -> Option<u32> {
+    let n = points.len();
+    if n < 2 * p.min_matches {
+        return None;
+    }
+    let pairs: Vec<(f64, f64)> = points.iter().map(|&(s, d, _)| (s, d)).collect();
+    let one = inliers_of_one_fit(&pairs, p.max_residual as f64);
+    if one as f64 >= BREAK_INLIERS * n as f64 {
+        return None;
+    }
+    let sse = |pts: &[(f64, f64)]| linear_fit(pts).map(|(_, _, var, ..)| var * (pts.len() as f64 - 2.0));
+    let (k, _) = (p.min_matches..=n - p.min_matches)
+        .filter_map(|k| Some((k, sse(&pairs[..k])? + sse(&pairs[k..])?)))
+        .min_by(|a, b| a.1.total_cmp(&b.1))?;
+    let rms = |pts: &[(f64, f64)]| linear_fit(pts).map_or(f64::INFINITY, |(_, _, var, ..)| var.sqrt());
+    let both =
+        inliers_of_one_fit(&pairs[..k], p.max_residual as f64) + inliers_of_one_fit(&pairs[k..], p.max_residual as f64);
+    (rms(&pairs[..k]) <= BREAK_RMS && rms(&pairs[k..]) <= BREAK_RMS && both as f64 >= BREAK_GAIN * one as f64)
+        .then_some(points[k - 1].2)
+}
+
+/// `line` cut after its string's edgel `last_before`, each side fitted as a 2D line of its own
+/// (a side too short to be one is left out).
+fn split_line(
+    line: &Line2,
+    strings: &[EdgeString],
+    left_rect: &[super::canny::Edgel],
+    last_before: u32,
+    p2: &super::lines2d::Lines2dParams,
+) -> Option<Vec<Line2>> {
+    let string = &strings[line.string as usize].edgels;
+    let cut =
+        string[line.first as usize..=line.last as usize].iter().position(|&i| i == last_before)? + line.first as usize;
+    let pts: Vec<[f32; 2]> = string.iter().map(|&i| [left_rect[i as usize].x, left_rect[i as usize].y]).collect();
+    Some(
+        [(line.first as usize, cut), (cut + 1, line.last as usize)]
+            .into_iter()
+            .filter(|(a, b)| a < b)
+            .filter_map(|(a, b)| super::lines2d::fit_piece(&pts, a, b, line.string, p2))
+            .collect(),
+    )
+}
+
 /// 3D lines from 2D lines (fitted on the rectified left edgels `left_rect`) and PMF matches.
 pub fn fit_lines3d(
     lines: &[Line2],
@@ -91,19 +217,9 @@ pub fn fit_lines3d(
     for (li, line) in lines.iter().enumerate() {
         let len = line.length() as f64;
         let dir = line.direction();
-        if (dir[1].abs() as f64) < (p.min_angle_to_raster as f64).sin() || len < 1.0 {
+        let Some(mut points) = disparities_along(line, strings, left_rect, &disparity, p) else {
             continue;
-        }
-        let string = &strings[line.string as usize].edgels;
-        let along = |i: u32| {
-            let e = &left_rect[i as usize];
-            ((e.x - line.start[0]) * dir[0] + (e.y - line.start[1]) * dir[1]) as f64
         };
-        let mut points: Vec<(f64, f64, u32)> = string[line.first as usize..=line.last as usize]
-            .iter()
-            .filter(|&&i| !disparity[i as usize].is_nan())
-            .map(|&i| (along(i), disparity[i as usize], i))
-            .collect();
         let pairs = |pts: &[(f64, f64, u32)]| pts.iter().map(|&(s, d, _)| (s, d)).collect::<Vec<_>>();
         // Two passes: fit, drop outliers, fit again.
         let mut fit = None;
@@ -232,4 +348,75 @@ pub fn complete_flat_lines(
         });
     }
     lines3d.extend(added);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::front_end::canny::Edgel;
+    use crate::front_end::lines2d::{Lines2dParams, fit_lines};
+
+    /// A straight, steep string of 80 rectified left edgels and a match on each, its disparity
+    /// `disparity(k)` at edgel `k`.
+    fn string_with(disparity: impl Fn(usize) -> f32) -> (Vec<Edgel>, Vec<EdgeString>, Vec<Match>) {
+        let edgels: Vec<Edgel> = (0..80)
+            .map(|k| Edgel {
+                x: 100.0 + 0.1 * k as f32,
+                y: k as f32,
+                orientation: 0.0,
+                contrast: 20.0,
+                sides: [0.0; 2],
+            })
+            .collect();
+        let matches = edgels
+            .iter()
+            .enumerate()
+            .map(|(k, e)| Match {
+                left: k as u32,
+                right: k as u32,
+                x: e.x,
+                y: e.y,
+                disparity: disparity(k),
+                strength: 1.0,
+            })
+            .collect();
+        (edgels, vec![EdgeString { edgels: (0..80).collect() }], matches)
+    }
+
+    fn split(edgels: &[Edgel], strings: &[EdgeString], matches: &[Match]) -> Vec<Line2> {
+        let p2 = Lines2dParams::default();
+        let lines = fit_lines(edgels, strings, &p2);
+        assert_eq!(lines.len(), 1, "the string is one straight 2D line");
+        split_at_depth_breaks(lines, strings, edgels, matches, &Lines3dParams::default(), &p2)
+    }
+
+    #[test]
+    fn a_line_whose_disparity_breaks_is_split_there() {
+        // Two edges in one straight image line: disparity rises to 210 over 50 edgels, then
+        // runs from 225 down (an edge nearer the cameras).
+        let (edgels, strings, matches) =
+            string_with(|k| if k < 50 { 200.0 + 0.2 * k as f32 } else { 225.0 - 0.1 * (k - 50) as f32 });
+        let lines = split(&edgels, &strings, &matches);
+        assert_eq!(lines.len(), 2, "{lines:?}");
+        assert!(lines[0].last <= 49 && lines[0].last >= 45, "{lines:?}");
+        assert!(lines[1].first >= 50 && lines[1].first <= 54, "{lines:?}");
+        // Each side then carries a 3D line on all its matches.
+        for l in &lines {
+            let disparity: Vec<f64> = matches.iter().map(|m| m.disparity as f64).collect();
+            let pts = disparities_along(l, &strings, &edgels, &disparity, &Lines3dParams::default()).unwrap();
+            let pairs: Vec<(f64, f64)> = pts.iter().map(|&(s, d, _)| (s, d)).collect();
+            assert_eq!(inliers_of_one_fit(&pairs, 1.0), pairs.len());
+        }
+    }
+
+    #[test]
+    fn a_line_with_a_few_wrong_matches_is_not_split() {
+        // One edge, its disparity rising steadily; four matches 6 px off.
+        let (edgels, strings, matches) = string_with(|k| 200.0 + 0.2 * k as f32 + if k % 20 == 7 { 6.0 } else { 0.0 });
+        assert_eq!(split(&edgels, &strings, &matches).len(), 1);
+        // Nor is one whose second half is noise rather than a second edge.
+        let (edgels, strings, matches) =
+            string_with(|k| if k < 50 { 200.0 + 0.2 * k as f32 } else { 215.0 + 3.0 * ((k * 7) % 5) as f32 });
+        assert_eq!(split(&edgels, &strings, &matches).len(), 1);
+    }
 }
