@@ -144,6 +144,18 @@ pub fn split_at_depth_breaks(
     out
 }
 
+/// The 2D lines of `strings` (default parameters), split where the disparity of `matches`
+/// along them breaks: what the whole-image and sliced front ends and the join's refit all run.
+pub fn lines2d_split_at_depth_breaks(
+    left_rect: &[super::canny::Edgel],
+    strings: &[EdgeString],
+    matches: &[Match],
+) -> Vec<Line2> {
+    let p2 = super::lines2d::Lines2dParams::default();
+    let lines = super::lines2d::fit_lines(left_rect, strings, &p2);
+    split_at_depth_breaks(lines, strings, left_rect, matches, &Lines3dParams::default(), &p2)
+}
+
 /// How many of `points` lie within `max_residual` of a straight fit (two passes, as
 /// [`fit_lines3d`] fits).
 fn inliers_of_one_fit(points: &[(f64, f64)], max_residual: f64) -> usize {

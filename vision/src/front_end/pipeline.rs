@@ -1,8 +1,8 @@
 //! The vision front end on one stereo pair: what `marvin stereo` and `marvin eval vision` run.
 
 use super::canny::{CannyParams, EdgeMap, Edgel};
-use super::lines2d::{Line2, Lines2dParams, fit_lines};
-use super::lines3d::{Line3, Lines3dParams, complete_flat_lines, fit_lines3d, split_at_depth_breaks};
+use super::lines2d::Line2;
+use super::lines3d::{Line3, Lines3dParams, complete_flat_lines, fit_lines3d, lines2d_split_at_depth_breaks};
 use super::pmf::{Match, PmfParams, pmf, right_figural_continuity};
 use super::rectify::{Rectification, Side};
 use super::strings::{EdgeString, link_strings};
@@ -119,15 +119,7 @@ pub fn run_with(left: &GreyImage, right: &GreyImage, geometry: &Geometry, canny_
         params.continuity_step,
     );
     watch.lap("pmf");
-    let lines2d = fit_lines(&left_rectified, &left_strings, &Lines2dParams::default());
-    let lines2d = split_at_depth_breaks(
-        lines2d,
-        &left_strings,
-        &left_rectified,
-        &matches,
-        &Lines3dParams::default(),
-        &Lines2dParams::default(),
-    );
+    let lines2d = lines2d_split_at_depth_breaks(&left_rectified, &left_strings, &matches);
     watch.lap("geom2d");
     let lines3d = rect.as_ref().map_or_else(Vec::new, |rect| {
         let p = Lines3dParams::default();

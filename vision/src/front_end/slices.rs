@@ -15,8 +15,8 @@
 //! left slice and offset from it.
 
 use super::canny::{CannyParams, CannyWorkspace, EdgeMap, Edgel};
-use super::lines2d::{Line2, Lines2dParams, fit_lines};
-use super::lines3d::{Line3, Lines3dParams, complete_flat_lines, fit_lines3d, split_at_depth_breaks};
+use super::lines2d::Line2;
+use super::lines3d::{Line3, Lines3dParams, complete_flat_lines, fit_lines3d, lines2d_split_at_depth_breaks};
 use super::pipeline::{FrontEnd, MIN_STRING, Stopwatch, WORKSPACE_DEPTH_M, disparity_range};
 use super::pmf::{Match, PmfParams, pmf, right_figural_continuity};
 use super::rectify::{Rectification, Side};
@@ -166,15 +166,7 @@ pub fn run_slice(
     let pmf_params = PmfParams { disparity_min, disparity_max, ..PmfParams::default() };
     let matches = pmf(&left_rect, &right_rect, &strings, &pmf_params);
     watch.lap("pmf");
-    let lines2d = fit_lines(&left_rect, &strings, &Lines2dParams::default());
-    let lines2d = split_at_depth_breaks(
-        lines2d,
-        &strings,
-        &left_rect,
-        &matches,
-        &Lines3dParams::default(),
-        &Lines2dParams::default(),
-    );
+    let lines2d = lines2d_split_at_depth_breaks(&left_rect, &strings, &matches);
     watch.lap("geom2d");
     let p3 = Lines3dParams::default();
     let mut lines3d = fit_lines3d(&lines2d, &strings, &left_rect, &matches, rect, &p3);
@@ -294,9 +286,7 @@ pub fn join(slices: &[SliceResult], rect: Rectification, width: usize, height: u
     }
     let p3 = Lines3dParams::default();
     let to_refit: Vec<EdgeString> = refit.iter().map(|&gi| fe.left_strings[gi].clone()).collect();
-    let lines = fit_lines(&fe.left_rectified, &to_refit, &Lines2dParams::default());
-    let mut lines =
-        split_at_depth_breaks(lines, &to_refit, &fe.left_rectified, &fe.matches, &p3, &Lines2dParams::default());
+    let mut lines = lines2d_split_at_depth_breaks(&fe.left_rectified, &to_refit, &fe.matches);
     let mut lines3d = fit_lines3d(&lines, &to_refit, &fe.left_rectified, &fe.matches, &rect, &p3);
     let line_base = fe.lines2d.len() as u32;
     for l in &mut lines {
