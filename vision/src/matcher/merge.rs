@@ -1,7 +1,8 @@
 //! All models at once: each model's matcher in parallel, then the merge that keeps the best
 //! supported of reports that share lines or space, the second look (objects with too few 3D
 //! lines), the third (candidates partly hidden by objects already located), each report set
-//! against other models read from its lines ([`rival_reading`]), and last the reports' faces
+//! against other models read from its lines ([`rival_reading`]), the reports turned over where
+//! the edgels' depths say so ([`super::turnover::turn_by_depth`]), and last the reports' faces
 //! read for one light ([`super::shading::judge_by_shading`]).
 
 use super::hypotheses::scene_pairs;
@@ -47,6 +48,7 @@ pub fn locate_all(
         }
     }
     if let Some(ev) = image {
+        super::turnover::turn_by_depth(models, (scene, p), ev, RIVAL_MAX_SUPPORT, &mut kept);
         super::shading::judge_by_shading(models, (scene, p), ev, RIVAL_MAX_SUPPORT, &mut kept);
     }
     kept

@@ -37,6 +37,8 @@
 //! - [`search`]: one model's virtual matcher, instance after instance.
 //! - [`occlusion`]: located solids (and a model's own bulk) hiding parts of a wireframe.
 //! - [`second_look`]: objects with too few 3D lines, from one 3D line and an image line.
+//! - [`depths`]: stereo's depths at the left image's edgels, by pixel.
+//! - [`turnover`]: a part read turned over, turned back where the edgels' depths say so.
 //! - [`light`]: the scene's light as faces' grey levels show it.
 //! - [`shading`]: the grey levels of a reading's faces, read off the edgels beside its edges.
 //! - [`merge`]: all models in parallel, reports merged, the second and third looks.
@@ -44,6 +46,7 @@
 //! The matcher depends on the front end's output types only ([`crate::front_end`]), never the
 //! other way round; within it, [`model`] is what the others share and imports none of them.
 
+pub mod depths;
 pub mod hypotheses;
 pub mod image_fit;
 pub mod light;
@@ -56,6 +59,7 @@ pub mod search;
 pub mod second_look;
 pub mod shading;
 pub mod support;
+pub mod turnover;
 pub mod verify;
 pub mod views;
 

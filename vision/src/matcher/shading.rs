@@ -154,7 +154,7 @@ const TURN_KEEP_SAMPLES: f64 = 0.5;
 /// The model's half turns about its bounding box's three axes through the box's centre: a
 /// flat part read upside down, or end for end, lies in the same box and along many of the
 /// same lines.
-fn half_turns(model: &MatcherModel) -> [Isometry3<f64>; 3] {
+pub(crate) fn half_turns(model: &MatcherModel) -> [Isometry3<f64>; 3] {
     let centre = nalgebra::center(&model.bounds.0, &model.bounds.1).coords;
     [Vector3::x_axis(), Vector3::y_axis(), Vector3::z_axis()].map(|axis| {
         let turn = nalgebra::UnitQuaternion::from_axis_angle(&axis, std::f64::consts::PI);
@@ -234,7 +234,7 @@ pub(crate) fn judge_by_shading(
 }
 
 /// A reading from `start`, refitted on the 3D lines along it and then on the image.
-fn turned_candidate(
+pub(crate) fn turned_candidate(
     model: &MatcherModel,
     scene: &[super::model::Seg],
     p: &super::model::MatchParams,
