@@ -138,7 +138,7 @@ mod tests {
                 edges.push(pixel as usize, *e);
             }
         }
-        let ev = ImageEvidence::new(&cam, &edges, lines).with_depths(drawn::model_depths(&wedge, &truth, &cam));
+        let ev = ImageEvidence::new(&cam, &edges, lines).with_depths(drawn::model_depths(&wedge, &truth, &cam, &edges));
         let p = MatchParams::default();
         let scene: Vec<Seg> = wedge
             .lines
@@ -168,7 +168,7 @@ mod tests {
     fn a_wedge_read_as_it_lies_is_left_alone() {
         let (wedge, cam, truth) = wedge_seen(0.0, 0.0);
         let (edges, lines) = drawn::model_edges(&wedge, &truth, &cam);
-        let ev = ImageEvidence::new(&cam, &edges, lines).with_depths(drawn::model_depths(&wedge, &truth, &cam));
+        let ev = ImageEvidence::new(&cam, &edges, lines).with_depths(drawn::model_depths(&wedge, &truth, &cam, &edges));
         let scene: Vec<Seg> = wedge.lines.iter().map(|l| l.transformed(&truth)).collect();
         let report = Located {
             model: wedge.name.clone(),

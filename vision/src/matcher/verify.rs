@@ -104,7 +104,7 @@ pub fn depth_agreement(
                 continue;
             }
             let q = a + (b - a) * f;
-            match depths.agree(q.x, q.y, p3.z, DEPTH_TOLERANCE_PX) {
+            match depths.agree(ev.edges, q.x, q.y, p3.z, DEPTH_TOLERANCE_PX) {
                 Some(true) => agree += STEP_PX,
                 Some(false) => disagree += STEP_PX,
                 None => {}
@@ -423,11 +423,16 @@ pub(crate) mod drawn {
         (edges, lines)
     }
 
-    /// Stereo's depths along every camera-facing edge of `model` at `pose`, one pixel apart,
-    /// as a camera 0.9 m away with a 0.1 m baseline and 900 px focal length would see them
-    /// (4 mm of depth to the pixel of disparity at 0.9 m).
-    pub fn model_depths(model: &MatcherModel, pose: &Isometry3<f64>, cam: &PinholeCamera) -> EdgelDepths {
-        let mut depths = EdgelDepths::new(512, 512);
+    /// Stereo's depths for the edgels of `edges` along every camera-facing edge of `model` at
+    /// `pose`, as a camera with a 0.1 m baseline and 900 px focal length would give them (4 mm
+    /// of depth to the pixel of disparity at 0.9 m).
+    pub fn model_depths(
+        model: &MatcherModel,
+        pose: &Isometry3<f64>,
+        cam: &PinholeCamera,
+        edges: &EdgeMap,
+    ) -> EdgelDepths {
+        let mut depths = EdgelDepths::new(edges);
         for (_, line) in model.lines.iter().enumerate().filter(|(k, _)| model.faces_camera(*k, pose)) {
             let (a3, b3) = (pose * line.a, pose * line.b);
             let (Some(a), Some(b)) = (cam.project_cam(&a3), cam.project_cam(&b3)) else { continue };
@@ -435,7 +440,10 @@ pub(crate) mod drawn {
             for s in 0..=steps {
                 let f = s as f64 / steps as f64;
                 let (q, z) = (a + (b - a) * f, (a3 + (b3 - a3) * f).z);
-                depths.insert(q.x.round() as usize, q.y.round() as usize, z, z * z / (900.0 * 0.1));
+                let (x, y) = (q.x.round() as usize, q.y.round() as usize);
+                if let Some(i) = (x < edges.width && y < edges.height).then(|| edges.edgel_at(x, y)).flatten() {
+                    depths.insert(i as usize, z, z * z / (900.0 * 0.1));
+                }
             }
         }
         depths
