@@ -240,7 +240,7 @@ mod tests {
         }
     }
 
-    /// A widget whose 3D lines all lie 2.5 mm off its edges (as a slightly wrong stereo depth
+    /// A widget whose 3D lines all lie 3.5 mm off its edges (as a slightly wrong stereo depth
     /// puts them): the pose fitted to them misses the image's edgels, but refined on the image
     /// it is found where the edgels put it.
     #[test]
