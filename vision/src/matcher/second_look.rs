@@ -91,24 +91,30 @@ fn crossing(p0: &Point2<f64>, p1: &Point2<f64>, q0: &Point2<f64>, q1: &Point2<f6
 /// Poses putting `c.line` along scene line `s` (out of the corner along `u_out`) and
 /// `c.other` in the plane of image line `l`.
 fn poses(model_line: &Seg, c: &Corner, s: &Seg, u_out: &Vector3<f64>, l: &ImageLine) -> Vec<Isometry3<f64>> {
-    let r0 = Rotation3::rotation_between(&c.out, u_out)
-        .unwrap_or_else(|| Rotation3::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI));
-    let (n, u, v) = (l.normal, *u_out, r0 * c.other_out);
-    let (a, b, cc) = (n.dot(&v) - n.dot(&u) * u.dot(&v), n.dot(&u.cross(&v)), n.dot(&u) * u.dot(&v));
-    let rho = a.hypot(b);
-    if rho < 1e-9 || cc.abs() > rho || n.dot(&u).abs() < 0.05 {
+    // First what the corner's turn does not change (most corners fail here, and the turn costs
+    // trigonometry): the scene line must cross the image line's plane...
+    let (n, u) = (l.normal, *u_out);
+    if n.dot(&u).abs() < 0.05 {
         return Vec::new();
     }
-    let (base, delta) = (b.atan2(a), (-cc / rho).acos());
-    let axis = Unit::new_unchecked(u);
-    // The corner lies on the scene line where it meets the plane.
+    // ...where the corner lies on the scene line, and the fragment (starting at s0) must lie
+    // along the model edge, out of the corner.
     let s0 = if u.dot(&s.dir) > 0.0 { s.a } else { s.b };
     let lambda = -n.dot(&s0.coords) / n.dot(&u);
-    // The fragment (starting at s0) must lie along the model edge, out of the corner.
     let slack = 0.012;
     if -lambda < -slack || -lambda > model_line.len - s.len + slack {
         return Vec::new();
     }
+    let r0 = Rotation3::rotation_between(&c.out, u_out)
+        .unwrap_or_else(|| Rotation3::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI));
+    let v = r0 * c.other_out;
+    let (a, b, cc) = (n.dot(&v) - n.dot(&u) * u.dot(&v), n.dot(&u.cross(&v)), n.dot(&u) * u.dot(&v));
+    let rho = a.hypot(b);
+    if rho < 1e-9 || cc.abs() > rho {
+        return Vec::new();
+    }
+    let (base, delta) = (b.atan2(a), (-cc / rho).acos());
+    let axis = Unit::new_unchecked(u);
     let corner_scene = s0 + u * lambda;
     [base + delta, base - delta]
         .into_iter()

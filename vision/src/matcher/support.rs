@@ -152,14 +152,18 @@ impl FreeLines {
     pub(crate) fn new(scene: &[Seg], free: &[bool]) -> FreeLines {
         let index: Vec<usize> = (0..scene.len()).filter(|&j| free[j]).collect();
         let mid: Vec<Point3<f64>> = index.iter().map(|&j| nalgebra::center(&scene[j].a, &scene[j].b)).collect();
-        let (x, y, z) = (
-            mid.iter().map(|m| m.x as f32).collect(),
-            mid.iter().map(|m| m.y as f32).collect(),
-            mid.iter().map(|m| m.z as f32).collect(),
-        );
-        FreeLines { index, x, y, z }
+        // Padded to whole chunks of lanes with midpoints at infinity, which lie near nothing.
+        let coordinate = |k: usize| {
+            let mut v: Vec<f32> = mid.iter().map(|m| m[k] as f32).collect();
+            v.resize(index.len().next_multiple_of(LANES), f32::INFINITY);
+            v
+        };
+        FreeLines { x: coordinate(0), y: coordinate(1), z: coordinate(2), index }
     }
 }
+
+/// Free lines' midpoints tested at a time in [`NearLines::gather`].
+const LANES: usize = 8;
 
 /// A support count's working space: the free lines near the pose, and per model line the
 /// scene length along it.
@@ -174,18 +178,23 @@ impl NearLines {
     fn gather(&mut self, free: &FreeLines, centre: &Point3<f64>, reach: f64) {
         let (cx, cy, cz, r2) = (centre.x as f32, centre.y as f32, centre.z as f32, (reach * reach) as f32);
         self.index.clear();
-        // Eight lines at a time, the tests free of branches so that they vectorise; then the
-        // few that pass are picked out.
-        const LANES: usize = 8;
-        let (xs, ys, zs) = (free.x.chunks(LANES), free.y.chunks(LANES), free.z.chunks(LANES));
-        for (chunk, ((x, y), z)) in xs.zip(ys).zip(zs).enumerate() {
-            let mut inside = [false; LANES];
-            for (i, ((x, y), z)) in x.iter().zip(y).zip(z).enumerate() {
-                let (dx, dy, dz) = (x - cx, y - cy, z - cz);
-                inside[i] = dx * dx + dy * dy + dz * dz <= r2;
+        // [`LANES`] lines at a time, in whole chunks and free of branches so that the tests
+        // vectorise, into a bit per line; then the few that pass are picked out.
+        let (xs, ys, zs) =
+            (free.x.as_chunks::<LANES>().0, free.y.as_chunks::<LANES>().0, free.z.as_chunks::<LANES>().0);
+        for (chunk, ((x, y), z)) in xs.iter().zip(ys).zip(zs).enumerate() {
+            let mut d2 = [0f32; LANES];
+            for i in 0..LANES {
+                let (dx, dy, dz) = (x[i] - cx, y[i] - cy, z[i] - cz);
+                d2[i] = dx * dx + dy * dy + dz * dz;
             }
-            if inside.iter().any(|&b| b) {
-                self.index.extend((0..x.len()).filter(|&i| inside[i]).map(|i| chunk * LANES + i));
+            if d2.iter().all(|&d| d > r2) {
+                continue;
+            }
+            let mut inside = d2.iter().enumerate().fold(0u32, |bits, (i, &d)| bits | (u32::from(d <= r2) << i));
+            while inside != 0 {
+                self.index.push(chunk * LANES + inside.trailing_zeros() as usize);
+                inside &= inside - 1;
             }
         }
     }

@@ -351,9 +351,25 @@ impl EdgeMask {
     /// from image point (`x`, `y`).
     fn any_near(&self, x: f64, y: f64, bins: u32) -> bool {
         // Just off the image the search still reaches its edge, whose pixels' bits cover it.
-        let px = x.round().clamp(0.0, self.width as f64 - 1.0) as usize;
-        let py = y.round().clamp(0.0, self.height as f64 - 1.0) as usize;
+        let px = nearest_px(x).clamp(0, self.width as i64 - 1) as usize;
+        let py = nearest_px(y).clamp(0, self.height as i64 - 1) as usize;
         self.bits[py * self.width + px] & bins != 0
+    }
+}
+
+/// `x.round() as i64`, without the call to the C library's `round` that the baseline x86-64
+/// instruction set needs for it (it has no rounding instruction): every sample of an image
+/// check takes the nearest pixel, and those calls were a tenth of the matcher's time. Rounds
+/// half away from zero as `round` does; `x - trunc(x)` is exact below 2^52.
+pub(crate) fn nearest_px(x: f64) -> i64 {
+    let towards_zero = x as i64;
+    let fraction = x - towards_zero as f64;
+    if fraction >= 0.5 {
+        towards_zero.saturating_add(1)
+    } else if fraction <= -0.5 {
+        towards_zero.saturating_sub(1)
+    } else {
+        towards_zero
     }
 }
 
@@ -364,7 +380,7 @@ fn edgel_along(edges: &EdgeMap, x: f64, y: f64, dir: Vector2<f64>) -> bool {
 /// The first edgel found within [`NEAR_PX`] across a line running along `dir` through (`x`,
 /// `y`) whose edge runs within [`ALONG_RAD`] of it.
 pub(crate) fn edgel_near(edges: &EdgeMap, x: f64, y: f64, dir: Vector2<f64>) -> Option<&Edgel> {
-    let (cx, cy) = (x.round() as i64, y.round() as i64);
+    let (cx, cy) = (nearest_px(x), nearest_px(y));
     let r = NEAR_PX.ceil() as i64;
     for py in cy - r..=cy + r {
         for px in cx - r..=cx + r {
@@ -375,10 +391,13 @@ pub(crate) fn edgel_near(edges: &EdgeMap, x: f64, y: f64, dir: Vector2<f64>) -> 
             let e = &edges.edgels[i as usize];
             let (dx, dy) = (e.x as f64 - x, e.y as f64 - y);
             // Distance across the line, and the edge's own direction (perpendicular to its gradient).
-            let across = (dx * dir.y - dy * dir.x).abs();
+            // (The direction's sine and cosine only for edgels near enough: they cost more
+            // than all the rest.)
+            if (dx * dir.y - dy * dir.x).abs() > NEAR_PX {
+                continue;
+            }
             let (s, c) = (e.orientation as f64).sin_cos();
-            let tangent = Vector2::new(-s, c);
-            if across <= NEAR_PX && tangent.dot(&dir).abs() >= ALONG_RAD.cos() {
+            if Vector2::new(-s, c).dot(&dir).abs() >= ALONG_RAD.cos() {
                 return Some(e);
             }
         }
@@ -454,6 +473,22 @@ pub(crate) mod drawn {
 mod tests {
     use super::*;
     use crate::front_end::canny::Edgel;
+
+    /// The nearest pixel is `round`'s, halves (away from zero), negatives, the values either
+    /// side of a half and the far ends included.
+    #[test]
+    fn the_nearest_pixel_is_the_one_round_gives() {
+        let mut values = vec![0.0, -0.0, 0.5, -0.5, 1.5, -1.5, 2.5, 511.5, -2.5, 1e15 + 0.5, f64::MAX, f64::MIN];
+        for k in -2000..2000 {
+            let x = k as f64 * 0.25;
+            values.extend([x, x.next_up(), x.next_down()]);
+        }
+        let mut rng = crate::matcher::fixtures::Lcg(3);
+        values.extend((0..10_000).map(|_| (rng.next() - 0.3) * 700.0));
+        for x in values {
+            assert_eq!(nearest_px(x), x.round() as i64, "{x:e}");
+        }
+    }
 
     /// A block half behind another shows edgels only where it is in view: counted over its
     /// whole camera-facing wireframe its image support falls well short, counted over the part
