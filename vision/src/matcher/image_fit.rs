@@ -78,8 +78,7 @@ fn nearest_edgel_across(ev: &ImageEvidence, u: &Point2<f64>, dir: &Vector2<f64>,
             }
             let Some(i) = ev.edges.edgel_at(px as usize, py as usize) else { continue };
             let e = &ev.edges.edgels[i as usize];
-            let (s, c) = (e.orientation as f64).sin_cos();
-            if Vector2::new(-s, c).dot(dir).abs() < cos_along {
+            if ev.tangent(i).dot(dir).abs() < cos_along {
                 continue;
             }
             let d = (Vector2::new(e.x as f64, e.y as f64) - u.coords).dot(&normal);

@@ -354,6 +354,24 @@ pub(crate) struct LineGrid {
     bits: Vec<u64>,
     /// Every line's bit.
     all: Vec<u64>,
+    /// The directions the model's lines run in, each once (to within [`SAME_DIRECTION`]).
+    directions: Vec<Vector3<f64>>,
+}
+
+/// Line directions whose cosine differs from 1 by less than this are taken as one in
+/// [`LineGrid::may_run_along`]; its test is widened by as much, so that it never rules out a
+/// line that the exact test would let through.
+const SAME_DIRECTION: f64 = 1e-9;
+
+/// The directions of `model`'s lines, parallel and opposite ones once.
+fn distinct_directions(model: &MatcherModel) -> Vec<Vector3<f64>> {
+    let mut out: Vec<Vector3<f64>> = Vec::new();
+    for l in &model.lines {
+        if !out.iter().any(|d| d.dot(&l.dir).abs() > 1.0 - SAME_DIRECTION) {
+            out.push(l.dir);
+        }
+    }
+    out
 }
 
 /// Cells are this many support distances wide.
@@ -404,7 +422,17 @@ impl LineGrid {
             words,
             bits,
             all,
+            directions: distinct_directions(model),
         }
+    }
+
+    /// Whether a scene line running along `dir` (model frame) is within the angle whose cosine
+    /// is `cos_tolerance` of some model line's direction: one that is not lies along none of
+    /// them ([`super::support::overlap`] gives every line nought). Most lines near a wrong pose
+    /// run in none of the model's few directions, and this test costs a tenth of looking up
+    /// both ends' cells.
+    pub(crate) fn may_run_along(&self, dir: &Vector3<f64>, cos_tolerance: f64) -> bool {
+        self.directions.iter().any(|d| d.dot(dir).abs() >= cos_tolerance - 2.0 * SAME_DIRECTION)
     }
 
     /// The bits of the cell holding `x` (model frame), if the grid reaches it.

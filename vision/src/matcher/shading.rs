@@ -104,7 +104,7 @@ pub fn face_shades(
 /// The grey level on side `into` (an image direction) of the edgel that runs along `dir` near
 /// image point `q`, if one does.
 fn grey_beside(ev: &ImageEvidence, q: Point2, dir: Vector2<f64>, into: Vector2<f64>) -> Option<f64> {
-    let e = super::verify::edgel_near(ev.edges, q.x, q.y, dir)?;
+    let e = ev.edgel_near(q.x, q.y, dir)?;
     let gradient = Vector2::new((e.orientation as f64).cos(), (e.orientation as f64).sin());
     // sides[1] lies along the gradient (the bright side), sides[0] against it.
     Some(if gradient.dot(&into) > 0.0 { e.sides[1] } else { e.sides[0] } as f64)

@@ -125,10 +125,14 @@ pub(crate) fn for_each_overlap(
     for &k in &near.index {
         let j = free.index[k];
         let sl = &scene[j];
+        let dir = inverse * sl.dir;
+        if !grid.may_run_along(&dir, cos_tolerance) {
+            continue;
+        }
         let in_model = Seg {
             a: Point3::from(inverse * (sl.a.coords - translation)),
             b: Point3::from(inverse * (sl.b.coords - translation)),
-            dir: inverse * sl.dir,
+            dir,
             len: sl.len,
         };
         let ends = grid_fits.then_some((in_model.a, in_model.b));
@@ -243,8 +247,9 @@ mod tests {
     }
 
     /// The grid of lines near each cell never rules out a model line that a scene line lies
-    /// along: over random segments round and along every model, what it leaves out has no
-    /// overlap by the exhaustive test, and it does leave most lines out.
+    /// along, nor do the model's directions: over random segments round and along every model,
+    /// what they leave out has no overlap by the exhaustive test, and the cells do leave most
+    /// lines out.
     #[test]
     fn the_line_grid_never_rules_out_a_line_a_scene_line_supports() {
         let lib = mesh::Library::load_default().unwrap();
@@ -254,7 +259,7 @@ mod tests {
         for name in ["widget", "l_bracket", "hex_prism", "u_channel"] {
             let model = MatcherModel::from_model(lib.get(name).unwrap());
             let grid = LineGrid::new(&model, p.support_distance);
-            let (mut supported, mut candidates, mut tried) = (0, 0, 0);
+            let (mut supported, mut candidates, mut tried, mut turned_away) = (0, 0, 0, 0);
             for n in 0..20_000 {
                 // Half the segments run near a model line (a fragment of it, moved a little,
                 // perhaps extended past its ends), half anywhere round the model.
@@ -272,12 +277,18 @@ mod tests {
                     if overlap(l, &scene, cos_tolerance, &p) > 0.0 {
                         supported += 1;
                         assert!(kept.contains(&i), "{name}: line {i} ruled out though {scene:?} lies along it");
+                        assert!(
+                            grid.may_run_along(&scene.dir, cos_tolerance),
+                            "{name}: {scene:?}'s direction ruled out"
+                        );
                     }
                 }
                 (candidates, tried) = (candidates + kept.len(), tried + model.lines.len());
+                turned_away += usize::from(n % 2 == 1 && !grid.may_run_along(&scene.dir, cos_tolerance));
             }
             assert!(supported > 1000, "{name}: only {supported} supporting segments drawn");
             assert!(candidates * 4 < tried, "{name}: the grid keeps {candidates} of {tried} lines");
+            assert!(turned_away > 10_000 * 3 / 4, "{name}: only {turned_away} of 10000 lines turned away by direction");
         }
     }
 }

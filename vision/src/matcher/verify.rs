@@ -40,6 +40,17 @@ impl<'a> ImageEvidence<'a> {
         ImageEvidence { cam, edges, lines, mask: std::sync::Arc::new(EdgeMask::of(edges)), depths: None }
     }
 
+    /// The first edgel within [`NEAR_PX`] across a line running along `dir` through (`x`, `y`)
+    /// whose edge runs within [`ALONG_RAD`] of it.
+    pub(crate) fn edgel_near(&self, x: f64, y: f64, dir: Vector2<f64>) -> Option<&'a Edgel> {
+        edgel_near(self.edges, &self.mask, x, y, dir)
+    }
+
+    /// The direction along the edge of edgel `i` (unit, perpendicular to its gradient).
+    pub(crate) fn tangent(&self, i: u32) -> Vector2<f64> {
+        self.mask.tangents[i as usize]
+    }
+
     /// The same edgels with other image lines.
     pub(crate) fn with_lines(&self, lines: Vec<ImageLine>) -> ImageEvidence<'a> {
         ImageEvidence { cam: self.cam, edges: self.edges, lines, mask: self.mask.clone(), depths: self.depths.clone() }
@@ -181,7 +192,7 @@ pub fn image_support_at_least(
     for (a, b, dir, bins, steps) in segments {
         for k in 1..steps {
             let q = a + (b - a) * (k as f64 / steps as f64);
-            if ev.mask.any_near(q.x, q.y, bins) && edgel_along(ev.edges, q.x, q.y, dir) {
+            if ev.mask.any_near(q.x, q.y, bins) && edgel_along(ev.edges, &ev.mask, q.x, q.y, dir) {
                 seen += STEP_PX;
             } else {
                 missed += STEP_PX;
@@ -219,7 +230,7 @@ pub fn image_support_unhidden(
             }
             unhidden += STEP_PX;
             let q = a + (b - a) * f;
-            if ev.mask.any_near(q.x, q.y, bins) && edgel_along(ev.edges, q.x, q.y, dir) {
+            if ev.mask.any_near(q.x, q.y, bins) && edgel_along(ev.edges, &ev.mask, q.x, q.y, dir) {
                 seen += STEP_PX;
             }
         }
@@ -310,6 +321,10 @@ struct EdgeMask {
     width: usize,
     height: usize,
     bits: Vec<u32>,
+    /// Each edgel's direction along its edge (unit, perpendicular to its gradient), worked
+    /// out once per image: the image checks look at each edgel many times, and the sine and
+    /// cosine cost more than the rest of a look.
+    tangents: Vec<Vector2<f64>>,
 }
 
 /// Orientation bins of the mask.
@@ -329,7 +344,8 @@ impl EdgeMask {
                 }
             }
         }
-        EdgeMask { width, height, bits }
+        let tangents = edges.edgels.iter().map(|e| tangent(e.orientation)).collect();
+        EdgeMask { width, height, bits, tangents }
     }
 
     /// The bin of an edge whose gradient points along `angle` (edges are taken both ways round).
@@ -373,13 +389,19 @@ pub(crate) fn nearest_px(x: f64) -> i64 {
     }
 }
 
-fn edgel_along(edges: &EdgeMap, x: f64, y: f64, dir: Vector2<f64>) -> bool {
-    edgel_near(edges, x, y, dir).is_some()
+fn edgel_along(edges: &EdgeMap, mask: &EdgeMask, x: f64, y: f64, dir: Vector2<f64>) -> bool {
+    edgel_near(edges, mask, x, y, dir).is_some()
 }
 
-/// The first edgel found within [`NEAR_PX`] across a line running along `dir` through (`x`,
-/// `y`) whose edge runs within [`ALONG_RAD`] of it.
-pub(crate) fn edgel_near(edges: &EdgeMap, x: f64, y: f64, dir: Vector2<f64>) -> Option<&Edgel> {
+/// The direction along the edge of an edgel whose gradient points along `orientation`.
+fn tangent(orientation: f32) -> Vector2<f64> {
+    let (s, c) = (orientation as f64).sin_cos();
+    Vector2::new(-s, c)
+}
+
+/// The first edgel of `edges` (laid out in `mask`) found within [`NEAR_PX`] across a line
+/// running along `dir` through (`x`, `y`) whose edge runs within [`ALONG_RAD`] of it.
+fn edgel_near<'e>(edges: &'e EdgeMap, mask: &EdgeMask, x: f64, y: f64, dir: Vector2<f64>) -> Option<&'e Edgel> {
     let (cx, cy) = (nearest_px(x), nearest_px(y));
     let r = NEAR_PX.ceil() as i64;
     for py in cy - r..=cy + r {
@@ -390,14 +412,10 @@ pub(crate) fn edgel_near(edges: &EdgeMap, x: f64, y: f64, dir: Vector2<f64>) -> 
             let Some(i) = edges.edgel_at(px as usize, py as usize) else { continue };
             let e = &edges.edgels[i as usize];
             let (dx, dy) = (e.x as f64 - x, e.y as f64 - y);
-            // Distance across the line, and the edge's own direction (perpendicular to its gradient).
-            // (The direction's sine and cosine only for edgels near enough: they cost more
-            // than all the rest.)
-            if (dx * dir.y - dy * dir.x).abs() > NEAR_PX {
-                continue;
-            }
-            let (s, c) = (e.orientation as f64).sin_cos();
-            if Vector2::new(-s, c).dot(&dir).abs() >= ALONG_RAD.cos() {
+            // Distance across the line, and the edge's own direction.
+            if (dx * dir.y - dy * dir.x).abs() <= NEAR_PX
+                && mask.tangents[i as usize].dot(&dir).abs() >= ALONG_RAD.cos()
+            {
                 return Some(e);
             }
         }
@@ -554,7 +572,7 @@ mod tests {
             let angle = next() * std::f64::consts::TAU;
             let dir = Vector2::new(angle.cos(), angle.sin());
             let near = mask.any_near(x, y, EdgeMask::bins_along(dir));
-            if edgel_along(&edges, x, y, dir) {
+            if edgel_along(&edges, &mask, x, y, dir) {
                 found += 1;
                 assert!(near, "the mask ruled out an edgel along {dir:?} near ({x:.2}, {y:.2})");
             } else if !near {
