@@ -12,7 +12,7 @@
 //!
 //! and what both take:
 //!
-//! - [`image`]: grey images as plain data.
+//! - [`image`]: grey images as plain data, and the nearest pixel to a point.
 //!
 //! The matcher takes the front end's output types; the front end imports nothing of the
 //! matcher. Still to come: the runtime of communicating processes.

@@ -45,7 +45,7 @@ impl EdgelDepths {
     /// `tolerance_px` of disparity: `None` where no edgel near it has a depth. Any one agreeing
     /// is enough (near a corner the edgels of two edges at different depths lie side by side).
     pub fn agree(&self, edges: &EdgeMap, x: f64, y: f64, z: f64, tolerance_px: f64) -> Option<bool> {
-        let (cx, cy) = (super::verify::nearest_px(x), super::verify::nearest_px(y));
+        let (cx, cy) = (crate::image::nearest_px(x), crate::image::nearest_px(y));
         let mut found = None;
         for py in (cy - NEAR_PX).max(0)..=(cy + NEAR_PX).min(edges.height as i64 - 1) {
             for px in (cx - NEAR_PX).max(0)..=(cx + NEAR_PX).min(edges.width as i64 - 1) {

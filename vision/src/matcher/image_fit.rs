@@ -72,7 +72,7 @@ fn nearest_edgel_across(ev: &ImageEvidence, u: &Point2<f64>, dir: &Vector2<f64>,
                 continue;
             }
             let q = u + normal * offset;
-            let (px, py) = (super::verify::nearest_px(q.x), super::verify::nearest_px(q.y));
+            let (px, py) = (crate::image::nearest_px(q.x), crate::image::nearest_px(q.y));
             if px < 0 || py < 0 || px >= ev.edges.width as i64 || py >= ev.edges.height as i64 {
                 continue;
             }

@@ -7,6 +7,7 @@
 use super::depths::EdgelDepths;
 use super::model::MatcherModel;
 use crate::front_end::canny::{EdgeMap, Edgel};
+use crate::image::nearest_px;
 use mesh::PinholeCamera;
 use nalgebra::{Isometry3, Point2, Vector2};
 
@@ -373,22 +374,6 @@ impl EdgeMask {
     }
 }
 
-/// `x.round() as i64`, without the call to the C library's `round` that the baseline x86-64
-/// instruction set needs for it (it has no rounding instruction): every sample of an image
-/// check takes the nearest pixel, and those calls were a tenth of the matcher's time. Rounds
-/// half away from zero as `round` does; `x - trunc(x)` is exact below 2^52.
-pub(crate) fn nearest_px(x: f64) -> i64 {
-    let towards_zero = x as i64;
-    let fraction = x - towards_zero as f64;
-    if fraction >= 0.5 {
-        towards_zero.saturating_add(1)
-    } else if fraction <= -0.5 {
-        towards_zero.saturating_sub(1)
-    } else {
-        towards_zero
-    }
-}
-
 fn edgel_along(edges: &EdgeMap, mask: &EdgeMask, x: f64, y: f64, dir: Vector2<f64>) -> bool {
     edgel_near(edges, mask, x, y, dir).is_some()
 }
@@ -491,22 +476,6 @@ pub(crate) mod drawn {
 mod tests {
     use super::*;
     use crate::front_end::canny::Edgel;
-
-    /// The nearest pixel is `round`'s, halves (away from zero), negatives, the values either
-    /// side of a half and the far ends included.
-    #[test]
-    fn the_nearest_pixel_is_the_one_round_gives() {
-        let mut values = vec![0.0, -0.0, 0.5, -0.5, 1.5, -1.5, 2.5, 511.5, -2.5, 1e15 + 0.5, f64::MAX, f64::MIN];
-        for k in -2000..2000 {
-            let x = k as f64 * 0.25;
-            values.extend([x, x.next_up(), x.next_down()]);
-        }
-        let mut rng = crate::matcher::fixtures::Lcg(3);
-        values.extend((0..10_000).map(|_| (rng.next() - 0.3) * 700.0));
-        for x in values {
-            assert_eq!(nearest_px(x), x.round() as i64, "{x:e}");
-        }
-    }
 
     /// A block half behind another shows edgels only where it is in view: counted over its
     /// whole camera-facing wireframe its image support falls well short, counted over the part
