@@ -335,7 +335,7 @@ impl EdgeMask {
     fn of(edges: &EdgeMap) -> EdgeMask {
         let (width, height) = (edges.width, edges.height);
         let mut bits = vec![0u32; width * height];
-        let r = NEAR_PX.ceil() as usize;
+        let r = SCAN_PX;
         for (e, &pixel) in edges.edgels.iter().zip(&edges.pixel) {
             let bit = 1u32 << Self::bin(e.orientation as f64);
             let (cx, cy) = (pixel as usize % width, pixel as usize / width);
@@ -374,9 +374,62 @@ impl EdgeMask {
     }
 }
 
+/// Whether an edgel lies within [`NEAR_PX`] across a line running along `dir` through (`x`,
+/// `y`) with its edge within [`ALONG_RAD`] of it: [`edgel_near`]'s question, the same pixels
+/// looked at, but nearest first and without a bounds test per pixel away from the image's
+/// border. Most samples that get this far find their edgel in the first few pixels; scanned
+/// row by row from a corner they took a tenth of the matcher's time.
 fn edgel_along(edges: &EdgeMap, mask: &EdgeMask, x: f64, y: f64, dir: Vector2<f64>) -> bool {
-    edgel_near(edges, mask, x, y, dir).is_some()
+    let (cx, cy) = (nearest_px(x), nearest_px(y));
+    let (w, h, r) = (edges.width as i64, edges.height as i64, SCAN_PX as i64);
+    if cx < r || cy < r || cx + r >= w || cy + r >= h {
+        return edgel_near(edges, mask, x, y, dir).is_some();
+    }
+    let centre = (cy * w + cx) as usize;
+    let cos_along = ALONG_RAD.cos();
+    NEAREST_FIRST.iter().any(|&(dx, dy)| {
+        let pixel = centre.wrapping_add_signed(dy as isize * w as isize + dx as isize);
+        let i = edges.at_pixel[pixel];
+        if i == crate::front_end::canny::NO_EDGEL {
+            return false;
+        }
+        let e = &edges.edgels[i as usize];
+        let (ex, ey) = (e.x as f64 - x, e.y as f64 - y);
+        (ex * dir.y - ey * dir.x).abs() <= NEAR_PX && mask.tangents[i as usize].dot(&dir).abs() >= cos_along
+    })
 }
+
+/// How far (pixels, in x and in y) from a sample's pixel the edgel searches look.
+const SCAN_PX: usize = NEAR_PX.ceil() as usize;
+
+/// The offsets of the pixels within [`SCAN_PX`] of a sample's, nearest first.
+const NEAREST_FIRST: [(i8, i8); (2 * SCAN_PX + 1) * (2 * SCAN_PX + 1)] = [
+    (0, 0),
+    (1, 0),
+    (-1, 0),
+    (0, 1),
+    (0, -1),
+    (1, 1),
+    (1, -1),
+    (-1, 1),
+    (-1, -1),
+    (2, 0),
+    (-2, 0),
+    (0, 2),
+    (0, -2),
+    (2, 1),
+    (2, -1),
+    (-2, 1),
+    (-2, -1),
+    (1, 2),
+    (-1, 2),
+    (1, -2),
+    (-1, -2),
+    (2, 2),
+    (2, -2),
+    (-2, 2),
+    (-2, -2),
+];
 
 /// The direction along the edge of an edgel whose gradient points along `orientation`.
 fn tangent(orientation: f32) -> Vector2<f64> {
@@ -388,7 +441,7 @@ fn tangent(orientation: f32) -> Vector2<f64> {
 /// running along `dir` through (`x`, `y`) whose edge runs within [`ALONG_RAD`] of it.
 fn edgel_near<'e>(edges: &'e EdgeMap, mask: &EdgeMask, x: f64, y: f64, dir: Vector2<f64>) -> Option<&'e Edgel> {
     let (cx, cy) = (nearest_px(x), nearest_px(y));
-    let r = NEAR_PX.ceil() as i64;
+    let r = SCAN_PX as i64;
     for py in cy - r..=cy + r {
         for px in cx - r..=cx + r {
             if px < 0 || py < 0 || px >= edges.width as i64 || py >= edges.height as i64 {
@@ -541,7 +594,9 @@ mod tests {
             let angle = next() * std::f64::consts::TAU;
             let dir = Vector2::new(angle.cos(), angle.sin());
             let near = mask.any_near(x, y, EdgeMask::bins_along(dir));
-            if edgel_along(&edges, &mask, x, y, dir) {
+            let along = edgel_along(&edges, &mask, x, y, dir);
+            assert_eq!(along, edgel_near(&edges, &mask, x, y, dir).is_some(), "the scans differ at ({x:.2}, {y:.2})");
+            if along {
                 found += 1;
                 assert!(near, "the mask ruled out an edgel along {dir:?} near ({x:.2}, {y:.2})");
             } else if !near {
@@ -550,6 +605,19 @@ mod tests {
         }
         // Both outcomes happen, so the test says something.
         assert!(found > 1000 && spared > 1000, "found {found}, spared {spared}");
+    }
+
+    /// The nearest-first scan looks at every pixel of the square once, nearer ones first.
+    #[test]
+    fn the_nearest_first_scan_covers_the_square_once_in_order_of_distance() {
+        let r = SCAN_PX as i8;
+        let mut all: Vec<(i8, i8)> = NEAREST_FIRST.to_vec();
+        let distance = |&(dx, dy): &(i8, i8)| i32::from(dx) * i32::from(dx) + i32::from(dy) * i32::from(dy);
+        assert!(NEAREST_FIRST.windows(2).all(|w| distance(&w[0]) <= distance(&w[1])));
+        all.sort();
+        all.dedup();
+        let square: Vec<(i8, i8)> = (-r..=r).flat_map(|dx| (-r..=r).map(move |dy| (dx, dy))).collect();
+        assert_eq!(all, square);
     }
 
     /// An L-bracket read into a U-channel's corner runs along the channel's edges for most of
