@@ -378,7 +378,8 @@ impl EdgeMask {
 /// `y`) with its edge within [`ALONG_RAD`] of it: [`edgel_near`]'s question, the same pixels
 /// looked at, but nearest first and without a bounds test per pixel away from the image's
 /// border. Most samples that get this far find their edgel in the first few pixels; scanned
-/// row by row from a corner they took a tenth of the matcher's time.
+/// row by row from a corner they took 7% of the matcher's instructions (callgrind), with many
+/// mispredicted branches.
 fn edgel_along(edges: &EdgeMap, mask: &EdgeMask, x: f64, y: f64, dir: Vector2<f64>) -> bool {
     let (cx, cy) = (nearest_px(x), nearest_px(y));
     let (w, h, r) = (edges.width as i64, edges.height as i64, SCAN_PX as i64);
