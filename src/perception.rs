@@ -76,10 +76,23 @@ pub fn part_models(library: &mesh::Library) -> Vec<MatcherModel> {
 /// The calibration flag's model name.
 pub const FLAG: &str = "flag";
 
-/// Every part located in the pair's front-end output.
-pub fn locate_parts(models: &[MatcherModel], pair: &Pair, fe: &FrontEnd) -> Vec<Located> {
+/// Every part located in the pair's front-end output (none through the table, where
+/// `cam_from_table` says it is).
+pub fn locate_parts(
+    models: &[MatcherModel],
+    pair: &Pair,
+    fe: &FrontEnd,
+    cam_from_table: Option<&Isometry3<f64>>,
+) -> Vec<Located> {
     let evidence = vision::matcher::verify::ImageEvidence::of(&pair.calib.left, fe);
-    vision::matcher::locate_all(models, &scene_lines(fe), &MatchParams::default(), Some(&evidence))
+    vision::matcher::locate_all(models, &scene_lines(fe), &part_params(cam_from_table), Some(&evidence))
+}
+
+/// The matcher's settings for the parts, with the table where the cell's layout puts it:
+/// `cam_from_table` places a frame whose plane z = 0 is the table's top, z up (see
+/// [`vision::matcher::table`]).
+pub fn part_params(cam_from_table: Option<&Isometry3<f64>>) -> MatchParams {
+    MatchParams { table: cam_from_table.map(vision::matcher::Table::from_cam_from_table), ..MatchParams::default() }
 }
 
 /// The flag as vision saw it, or why it is not used.

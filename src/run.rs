@@ -124,6 +124,8 @@ pub fn run(
     let bin = config.bin.clone().or_else(|| hello.bins.first().cloned()).context("the cell has no bin")?;
     let bin_boxes = hello.bin_boxes.clone();
     let table_top = hello.table_top_base_m;
+    // The table's top in `cam`, by the hand-eye calibration: `base` is level, z up.
+    let cam_from_table = table_top.map(|top| cam_from_base * Isometry3::translation(0.0, 0.0, top));
     let models = part_models(library);
     let mut failed: Vec<(String, Isometry3<f64>)> = Vec::new();
     let mut cycles = Vec::new();
@@ -136,7 +138,7 @@ pub fn run(
         let capture_ms = clock.elapsed().as_secs_f64() * 1e3;
         let fe = front_end(&pair);
         let clock = Instant::now();
-        let located = locate_parts(&models, &pair, &fe);
+        let located = locate_parts(&models, &pair, &fe, cam_from_table.as_ref());
         let match_ms = clock.elapsed().as_secs_f64() * 1e3;
         observe(RunEvent::Captured { cycle: k, capture: &capture, pair: &pair, front_end: &fe })?;
         observe(RunEvent::Located { cycle: k, located: &located })?;

@@ -252,7 +252,7 @@ fn vision(args: &BenchArgs) -> anyhow::Result<()> {
     // left image's edgels for verification; and the whole cycle, stereo pair in, located
     // objects out.
     let models = super::eval::matcher_models(&s.scn.library, None);
-    let mp = vision::matcher::MatchParams::default();
+    let mp = marvin::perception::part_params(Some(&s.calib.left.cam_from_world()));
     let fe = vision::front_end::slices::run_sliced(&left, &right, &s.calib, &params, 8);
     let lines: Vec<vision::matcher::Seg> =
         fe.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();

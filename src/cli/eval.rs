@@ -259,7 +259,7 @@ fn run_locate(world: &std::path::Path, scenes: u64, seed: u64, json: bool) -> an
         scn.library.models.values().map(|m| (m.name.clone(), symmetries(m))).collect();
     let mut total = LocateStats::default();
     let mut match_ms = Vec::new();
-    let params = vision::matcher::MatchParams::default();
+    let params = marvin::perception::part_params(Some(&calib.left.cam_from_world()));
     let mut unsettled = 0;
     let (mut false_reports, mut missed) = (Vec::new(), Vec::new());
     for k in 0..scenes {

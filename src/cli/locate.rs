@@ -6,6 +6,7 @@ use super::output::emit;
 use anyhow::{Context, bail};
 use image::{Rgb, RgbImage};
 use marvin::eval::{CORRECT_POS_M, CORRECT_ROT_DEG, pose_error, symmetries, visible_fraction};
+use marvin::perception::part_params;
 use nalgebra::Isometry3;
 use sim::Scenario;
 use std::path::Path;
@@ -36,7 +37,7 @@ pub fn run(
     let lines: Vec<Seg> = p.front_end.lines3d.iter().map(|l| Seg::new(l.start(), l.end())).collect();
     let sought = matcher_models(&scn.library, models.as_deref());
     let evidence = vision::matcher::verify::ImageEvidence::of(&calib.left, &p.front_end);
-    let located = locate_all(&sought, &lines, &MatchParams::default(), Some(&evidence));
+    let located = locate_all(&sought, &lines, &part_params(Some(&calib.left.cam_from_world())), Some(&evidence));
     // Compare with the truth (evaluation only).
     let truths: Vec<(String, Isometry3<f64>)> =
         p.scene.objects.iter().map(|o| (o.model.clone(), calib.left.cam_from_world() * o.world_from_model)).collect();

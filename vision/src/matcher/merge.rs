@@ -9,6 +9,7 @@ use super::hypotheses::scene_pairs;
 use super::model::{Located, MatchParams, MatcherModel, Seg};
 use super::occlusion::{MIN_IN_VIEW, Solid};
 use super::search::{Search, locate_from};
+use super::table::through_table;
 use super::verify::{Explained, ImageEvidence, MAX_EXPLAINED, image_support_unhidden};
 use nalgebra::Isometry3;
 
@@ -135,6 +136,7 @@ fn rival_reading(
                 &l.cam_from_model,
             ));
             shared > MAX_SPACE_SHARED
+                && !through_table(p.table.as_ref(), m, &l.cam_from_model)
                 && l.image_support > r.image_support
                 && super::verify::image_support_at_least(m, &l.cam_from_model, ev, RIVAL_MIN_IMAGE_SUPPORT).is_some()
                 && explains(m, l) > own_explains
@@ -217,8 +219,9 @@ pub(crate) fn hidden_in_part(
     out
 }
 
-/// Adds `reports` to `kept`, best first, unless one reuses over 30% of lines already claimed or
-/// fills space a kept object fills; claims the lines of those it keeps.
+/// Adds `reports` to `kept`, best first, unless one reuses over 30% of lines already claimed,
+/// fills space a kept object fills or cuts into the table ([`super::table`]); claims the lines
+/// of those it keeps.
 ///
 /// Best is the most evidence explained: [`matched_length`] times the square root of the share
 /// of the camera-facing wireframe along edgels. (The share itself weighed a larger model whose
@@ -249,6 +252,9 @@ pub(crate) fn resolve(
         .into_iter()
         .filter_map(|loc| {
             let model = models.iter().find(|m| m.name == loc.model)?;
+            if through_table(p.table.as_ref(), model, &loc.cam_from_model) {
+                return None;
+            }
             let (solid, matched) = (Solid::new(model, &loc.cam_from_model), matched_length(model, &loc, scene, p));
             Some(Pending { loc, model, solid, matched, score: 0.0 })
         })

@@ -41,6 +41,7 @@
 //! - [`turnover`]: a part read turned over, turned back where the edgels' depths say so.
 //! - [`light`]: the scene's light as faces' grey levels show it.
 //! - [`shading`]: the grey levels of a reading's faces, read off the edgels beside its edges.
+//! - [`table`]: the table the parts rest on; readings through it are refused.
 //! - [`merge`]: all models in parallel, reports merged, the second and third looks.
 //!
 //! The matcher depends on the front end's output types only ([`crate::front_end`]), never the
@@ -59,6 +60,7 @@ pub mod search;
 pub mod second_look;
 pub mod shading;
 pub mod support;
+pub mod table;
 pub mod turnover;
 pub mod verify;
 pub mod views;
@@ -70,3 +72,4 @@ pub use merge::locate_all;
 pub use model::{Located, MatchParams, MatcherModel, Seg};
 pub use search::locate;
 pub use support::{correspondences_at, support_at};
+pub use table::Table;

@@ -261,6 +261,10 @@ pub struct MatchParams {
     /// With the image at hand, a located object's camera-facing wireframe must run along
     /// edgels for at least this fraction of its length.
     pub min_image_support: f64,
+    /// The table the parts rest on, where the cell's layout is known: readings through its top
+    /// are refused ([`super::table`]).
+    #[serde(default)]
+    pub table: Option<super::table::Table>,
 }
 
 impl Default for MatchParams {
@@ -276,6 +280,7 @@ impl Default for MatchParams {
             max_instances: 4,
             hypotheses: 12,
             min_image_support: 0.5,
+            table: None,
         }
     }
 }

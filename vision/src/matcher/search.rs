@@ -6,6 +6,7 @@ use super::hypotheses::{ScenePair, hypotheses, rescored, scene_pairs};
 use super::model::{Located, MatchParams, MatcherModel, Seg};
 use super::ranking::{Candidate, best_of, image_support_needed, in_image, refine};
 use super::support::model_lines_of;
+use super::table::through_table;
 use super::verify::{ImageEvidence, image_support_at_least};
 use super::views::characteristic_views;
 use nalgebra::Isometry3;
@@ -44,44 +45,80 @@ pub(crate) fn locate_from(
     let mut found = Vec::new();
     let mut seen = hypotheses(model, scene, pairs, views, p);
     let mut doubtful = Vec::new();
-    for _ in 0..p.max_instances {
-        if !found.is_empty() {
+    for round in 0..p.max_instances {
+        if round > 0 {
             seen = rescored(model, scene, &free, &seen, p);
         }
         // The best-supported hypotheses, each refined and checked against the image, are
         // verified in order of both kinds of evidence, a tier at a time ([`TIERS`]); the first
-        // that passes is the next instance.
+        // that passes and lies on the table is the next instance.
         // Those short of the 3D evidence or the image evidence needed are left out (their image
         // support is not worked out, or not to the end: the check stops once it must fail).
         doubtful.clear();
         let ranked = best_of(&seen, TIERS * p.hypotheses);
-        let mut best = None;
+        let (mut best, mut sunk) = (None, None);
         for tier in ranked.chunks(p.hypotheses.max(1)) {
-            best = tier
+            let mut passed: Vec<Candidate> = tier
                 .iter()
                 .filter_map(|&start| verified(model, scene, &free, start, p, image, &mut doubtful))
-                // The first of the highest rank.
-                .min_by(|a, b| b.rank().total_cmp(&a.rank()));
+                .collect();
+            // The highest rank first (of equals, the first verified).
+            passed.sort_by(|a, b| b.rank().total_cmp(&a.rank()));
+            for c in passed {
+                match on_the_table(model, scene, &free, c, p, image) {
+                    Ok(c) => {
+                        best = Some(c);
+                        break;
+                    }
+                    Err(c) => {
+                        sunk.get_or_insert(c);
+                    }
+                }
+            }
             if best.is_some() {
                 break;
             }
         }
-        let Some(c) = best else { break };
-        // The pose of the one that passes is refined on the image as well: 3D lines alone
-        // leave flat parts a few degrees off.
-        let c = match image {
-            Some(ev) => in_image(model, scene, &free, c, p, ev),
-            None => c,
+        // Where only readings through the table passed, the best of them is set aside as an
+        // instance found would be (its lines no longer free) but not reported: the hypotheses
+        // of the part truly there may all lie below its many variants, and rise only once
+        // its lines are taken.
+        let (c, on_table) = match (best, sunk) {
+            (Some(c), _) => (c, true),
+            (None, Some(c)) => (c, false),
+            (None, None) => break,
         };
         let located = c.located(model, c.image_support);
         for &j in &located.scene_lines {
             free[j] = false;
         }
-        found.push(located);
+        if on_table {
+            found.push(located);
+        }
         doubtful.clear();
     }
     doubtful.sort_by(|a, b| b.score.total_cmp(&a.score));
     Search { found, doubtful }
+}
+
+/// `c`, its pose refined on the image as well (3D lines alone leave flat parts a few degrees
+/// off), if it then lies on the table ([`super::table`]), else refused. Judged after the
+/// image's refinement, as a pose on a few 3D lines may lie several millimetres into the table
+/// before it. (Trying the refused reading's half turns in its place, as a flat part turned over
+/// runs along many of the same lines, found nothing more on the tuning seeds.)
+fn on_the_table(
+    model: &MatcherModel,
+    scene: &[Seg],
+    free: &[bool],
+    c: Candidate,
+    p: &MatchParams,
+    image: Option<&ImageEvidence>,
+) -> Result<Candidate, Candidate> {
+    let c = match image {
+        Some(ev) => in_image(model, scene, free, c, p, ev),
+        None => c,
+    };
+    if through_table(p.table.as_ref(), model, &c.pose) { Err(c) } else { Ok(c) }
 }
 
 /// The candidate hypothesis `start` gives, refined on the free lines, if it has the 3D

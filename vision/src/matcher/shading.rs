@@ -246,6 +246,9 @@ pub(crate) fn turned_candidate(
     let lines: Vec<(usize, usize)> = pairs.iter().map(|&(i, j, _)| (i, j)).collect();
     let pose =
         super::image_fit::refine_in_image(model, &pose, scene, &lines, ev, super::image_fit::SEARCH_PX).unwrap_or(pose);
+    if super::table::through_table(p.table.as_ref(), model, &pose) {
+        return None;
+    }
     let (score, pairs) = super::support::support(model, &pose, scene, &free, p);
     (score > 0.0).then(|| super::ranking::Candidate {
         pose,
