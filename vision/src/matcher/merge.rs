@@ -2,7 +2,8 @@
 //! supported of reports that share lines or space, the second look (objects with too few 3D
 //! lines), the third (candidates partly hidden by objects already located), each report set
 //! against other models read from its lines ([`rival_reading`]), the reports turned over where
-//! the edgels' depths say so ([`super::turnover::turn_by_depth`]), and last the reports' faces
+//! the edgels' depths or the image say so ([`super::turnover::turn_by_depth`],
+//! [`super::turnover::turn_by_image`]), and last the reports' faces
 //! read for one light ([`super::shading::judge_by_shading`]).
 
 use super::hypotheses::scene_pairs;
@@ -50,6 +51,7 @@ pub fn locate_all(
     }
     if let Some(ev) = image {
         super::turnover::turn_by_depth(models, (scene, p), ev, RIVAL_MAX_SUPPORT, &mut kept);
+        super::turnover::turn_by_image(models, (scene, p), ev, RIVAL_MAX_SUPPORT, &mut kept);
         super::shading::judge_by_shading(models, (scene, p), ev, RIVAL_MAX_SUPPORT, &mut kept);
     }
     kept

@@ -38,7 +38,7 @@
 //! - [`occlusion`]: located solids (and a model's own bulk) hiding parts of a wireframe.
 //! - [`second_look`]: objects with too few 3D lines, from one 3D line and an image line.
 //! - [`depths`]: stereo's depths at the left image's matched edgels.
-//! - [`turnover`]: a part read turned over, turned back where the edgels' depths say so.
+//! - [`turnover`]: a part read turned over, turned back where the edgels' depths or the image say so.
 //! - [`light`]: the scene's light as faces' grey levels show it.
 //! - [`shading`]: the grey levels of a reading's faces, read off the edgels beside its edges.
 //! - [`table`]: the table the parts rest on; readings through it are refused.
