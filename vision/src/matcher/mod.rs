@@ -69,7 +69,6 @@ pub mod views;
 pub(crate) mod fixtures;
 
 pub use merge::locate_all;
-pub use model::{Located, MatchParams, MatcherModel, Seg};
+pub use model::{Located, MatchParams, MatcherModel, Seg, Table};
 pub use search::locate;
 pub use support::{correspondences_at, support_at};
-pub use table::Table;

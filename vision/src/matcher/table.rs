@@ -15,46 +15,22 @@
 //! on a part 60 mm long, and parts settled a little into it); of the 18 false reports on
 //! `widgets.toml` 1-500, six lay 17-40 mm under it and three 2-6 mm.
 
-use super::model::MatcherModel;
-use nalgebra::{Isometry3, Point3, Vector3};
-use serde::{Deserialize, Serialize};
-
-/// The table's top in the `cam` frame: its upward unit normal and the height of `cam`'s origin
-/// above it.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct Table {
-    pub up: [f64; 3],
-    /// `cam`'s origin above the top, metres.
-    pub camera_height_m: f64,
-}
+use super::model::{MatcherModel, Table};
+use nalgebra::Isometry3;
 
 /// How far (metres) a reading's lowest corner may lie under the table top: see the module's
 /// figures. Right readings came within 4.1 mm; this leaves them room.
 pub const MAX_BELOW_M: f64 = 0.006;
 
-impl Table {
-    /// The table whose top is the plane z = 0 of a frame `cam_from_table` places (z up).
-    pub fn from_cam_from_table(cam_from_table: &Isometry3<f64>) -> Table {
-        let up = cam_from_table.rotation * Vector3::z();
-        let top = Point3::from(cam_from_table.translation.vector);
-        Table { up: up.into(), camera_height_m: -Vector3::from(up).dot(&top.coords) }
-    }
-
-    /// How high `x` (`cam`) lies above the top, metres (negative under it).
-    pub fn height_of(&self, x: &Point3<f64>) -> f64 {
-        Vector3::from(self.up).dot(&x.coords) + self.camera_height_m
-    }
-
-    /// Whether `model` at `pose` (`cam_from_model`) has a corner more than [`MAX_BELOW_M`] under
-    /// the top.
-    pub fn cuts(&self, model: &MatcherModel, pose: &Isometry3<f64>) -> bool {
-        model.lines.iter().flat_map(|l| [l.a, l.b]).any(|corner| self.height_of(&(pose * corner)) < -MAX_BELOW_M)
-    }
+/// Whether `model` at `pose` (`cam_from_model`) has a corner more than [`MAX_BELOW_M`] under
+/// the top of `table`.
+pub fn cuts(table: &Table, model: &MatcherModel, pose: &Isometry3<f64>) -> bool {
+    model.lines.iter().flat_map(|l| [l.a, l.b]).any(|corner| table.height_of(&(pose * corner)) < -MAX_BELOW_M)
 }
 
 /// Whether a reading of `model` at `pose` is refused for cutting into the table, if one is known.
 pub(crate) fn through_table(table: Option<&Table>, model: &MatcherModel, pose: &Isometry3<f64>) -> bool {
-    table.is_some_and(|t| t.cuts(model, pose))
+    table.is_some_and(|t| cuts(t, model, pose))
 }
 
 #[cfg(test)]
@@ -62,7 +38,7 @@ mod tests {
     use super::*;
     use crate::matcher::fixtures::model;
     use crate::matcher::model::MatchParams;
-    use nalgebra::{Translation3, UnitQuaternion};
+    use nalgebra::{Point3, Translation3, UnitQuaternion};
 
     /// A camera 0.6 m above the table looking down at it, tilted: `cam_from_table`.
     fn cam_from_table() -> Isometry3<f64> {
@@ -98,10 +74,10 @@ mod tests {
                     UnitQuaternion::from_euler_angles(0.0, 0.0, 0.7),
                 )
         };
-        assert!(!table.cuts(&block, &at(0.0)), "resting on the top");
-        assert!(!table.cuts(&block, &at(-0.004)), "within the slack");
-        assert!(table.cuts(&block, &at(-0.010)), "sunk 10 mm");
-        assert!(!table.cuts(&block, &at(0.05)), "lifted");
+        assert!(!cuts(&table, &block, &at(0.0)), "resting on the top");
+        assert!(!cuts(&table, &block, &at(-0.004)), "within the slack");
+        assert!(cuts(&table, &block, &at(-0.010)), "sunk 10 mm");
+        assert!(!cuts(&table, &block, &at(0.05)), "lifted");
         assert!(!through_table(None, &block, &at(-0.010)), "no table known, nothing refused");
     }
 
