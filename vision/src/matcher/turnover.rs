@@ -129,8 +129,14 @@ pub(crate) fn turn_by_image(
             continue;
         }
         let now = image_support(model, &report.cam_from_model, ev);
+        // Along edgels for more than this, no turn could gain enough.
+        if now + IMAGE_TURN_GAIN > 1.0 {
+            continue;
+        }
         let better = half_turns(model)
             .into_iter()
+            // A symmetry of the part reads it as the report does.
+            .filter(|turn| !is_symmetry(model, turn))
             .filter_map(|turn| turned_candidate(model, scene, p, ev, report.cam_from_model * turn))
             .filter(|c| c.score >= IMAGE_TURN_KEEP * report.support && c.image_support >= now + IMAGE_TURN_GAIN)
             .max_by(|a, b| a.image_support.total_cmp(&b.image_support));
@@ -138,6 +144,15 @@ pub(crate) fn turn_by_image(
             *report = c.located(model, c.image_support);
         }
     }
+}
+
+/// Whether `turn` (in the model's frame) carries the model's wireframe onto itself.
+fn is_symmetry(model: &MatcherModel, turn: &Isometry3<f64>) -> bool {
+    let same = |x: &nalgebra::Point3<f64>, y: &nalgebra::Point3<f64>| (x - y).norm() < 1e-6;
+    model.lines.iter().all(|l| {
+        let (a, b) = (turn * l.a, turn * l.b);
+        model.lines.iter().any(|m| (same(&a, &m.a) && same(&b, &m.b)) || (same(&a, &m.b) && same(&b, &m.a)))
+    })
 }
 
 /// A turn replaces a report in [`turn_by_image`] if it runs along edgels for this much more of
@@ -292,5 +307,15 @@ mod tests {
         let mut kept = vec![report_at(&wedge, truth, &scene, &ev)];
         turn_by_image(std::slice::from_ref(&wedge), (&scene, &p), &ev, all, &mut kept);
         assert_eq!(kept[0].cam_from_model, truth, "read as it lies, it stays");
+    }
+
+    /// A block's half turns are all symmetries of it; none of a wedge's is.
+    #[test]
+    fn a_block_turned_over_is_the_same_block_and_a_wedge_is_not() {
+        let block = model("block");
+        assert!(half_turns(&block).iter().all(|t| is_symmetry(&block, t)));
+        let wedge = model("wedge");
+        assert!(half_turns(&wedge).iter().all(|t| !is_symmetry(&wedge, t)));
+        assert!(is_symmetry(&wedge, &Isometry3::identity()));
     }
 }
