@@ -6,7 +6,11 @@
 use super::model::{FocusPair, MatchParams, MatcherModel, Seg, closest_params, line_angle, separation};
 use super::pose_fit::{PointOnLine, rotation_from_two_directions, translation_from_points};
 use super::support::{FreeLines, NearLines, support_score};
+use super::table::nearly_flat;
 use nalgebra::{Isometry3, Point3, Vector3};
+
+/// A hypothesis: its support and its pose.
+pub(crate) type Scored = (f64, Isometry3<f64>);
 
 /// Whether a fragment of length `frag` whose closest approach to its partner falls at `t` from
 /// its start can lie, running the same way, on a model line of length `len` whose closest
@@ -17,26 +21,29 @@ pub(crate) fn fits_along(t: f64, frag: f64, m: f64, len: f64, tol: f64) -> bool 
 
 /// The hypotheses that congruent scene pairs (of `pairs`, all of free lines) give and that find
 /// at least the support a located object needs (`min_support_fraction` of the wireframe) and
-/// make the search's best so far (see [`Seen`]), with that support.
+/// make the search's best so far (see [`Seen`]), with that support; and apart, those short of
+/// it that put the part flat on the table (see [`Seen::flat`]).
 pub(crate) fn hypotheses(
     model: &MatcherModel,
     scene: &[Seg],
     pairs: &[ScenePair],
     views: &[Vec<FocusPair>],
     p: &MatchParams,
-) -> Vec<(f64, Isometry3<f64>)> {
+) -> (Vec<Scored>, Vec<Scored>) {
     use rayon::prelude::*;
     let free_lines = FreeLines::new(scene, &vec![true; scene.len()]);
     // One subordinate matcher per characteristic view, in parallel.
-    views
+    let per_view: Vec<_> = views
         .par_iter()
-        .flat_map_iter(|focus| {
+        .map(|focus| {
             let mut seen =
                 Seen::new(model, p.min_support_fraction * model.total_length, RECORDED_PER_KEPT * p.hypotheses);
             for_each_hypothesis(model, scene, (pairs, &free_lines), focus, p, &mut seen);
-            seen.all
+            (seen.all, seen.flat.all)
         })
-        .collect()
+        .collect();
+    let (all, flat): (Vec<_>, Vec<_>) = per_view.into_iter().unzip();
+    (all.concat(), flat.concat())
 }
 
 /// The hypotheses of an earlier search with their support among the lines still free, those
@@ -75,12 +82,33 @@ pub(crate) struct Seen {
     pub(crate) floor: f64,
     pub(crate) all: Vec<(f64, Isometry3<f64>)>,
     /// The best scores so far at each place, least on top.
-    best: std::collections::HashMap<[i32; 3], std::collections::BinaryHeap<std::cmp::Reverse<Score>>>,
+    best: Places,
     /// How many of the best at a place set its floor.
     pub(crate) recorded: usize,
     /// The middle of the model's wireframe (`model` frame), whose place a pose gives.
     middle: Point3<f64>,
+    /// Hypotheses short of `floor` that put the part flat on the table, with at least
+    /// [`FLAT_MIN_SUPPORT`] of its wireframe's length: the table look's starts
+    /// ([`super::table_look`]), the best [`FLAT_PER_PLACE`] at each place.
+    pub(crate) flat: Flat,
 }
+
+/// The best scores so far at each place, least on top.
+type Places = std::collections::HashMap<[i32; 3], std::collections::BinaryHeap<std::cmp::Reverse<Score>>>;
+
+/// See [`Seen::flat`].
+#[derive(Default)]
+pub(crate) struct Flat {
+    pub(crate) all: Vec<(f64, Isometry3<f64>)>,
+    best: Places,
+}
+
+/// A hypothesis lying flat on the table is kept for the table look with this share of the
+/// wireframe's length along 3D lines (the first look asks `min_support_fraction`).
+pub(crate) const FLAT_MIN_SUPPORT: f64 = 0.06;
+
+/// Flat hypotheses kept per place (see [`PLACE_M`]).
+const FLAT_PER_PLACE: usize = 4;
 
 /// Hypotheses whose support sets the floor of a search at a place, per hypothesis kept for
 /// verification (`MatchParams::hypotheses`). With one floor for the whole scene, 60 for the 12
@@ -117,7 +145,7 @@ impl Seen {
     fn new(model: &MatcherModel, floor: f64, recorded: usize) -> Seen {
         let midpoints = model.lines.iter().map(|l| (l.a.coords + l.b.coords) * 0.5);
         let middle = Point3::from(midpoints.sum::<Vector3<f64>>() / model.lines.len().max(1) as f64);
-        Seen { floor, all: Vec::new(), best: Default::default(), recorded, middle }
+        Seen { floor, all: Vec::new(), best: Default::default(), recorded, middle, flat: Flat::default() }
     }
 
     /// The place (a cell of [`PLACE_M`]) where `pose` puts the model.
@@ -128,20 +156,42 @@ impl Seen {
 
     /// The support a hypothesis at `pose` must exceed to be recorded.
     fn floor(&self, pose: &Isometry3<f64>) -> f64 {
-        match self.best.get(&self.place(pose)).and_then(|best| Some((best.len(), best.peek()?.0.0))) {
-            Some((kept, least)) if kept == self.recorded => self.floor.max(least),
-            _ => self.floor,
-        }
+        floor_at(&self.best, self.place(pose), self.recorded, self.floor)
+    }
+
+    /// The support a hypothesis at `pose`, flat on the table, must exceed to be kept for the
+    /// table look.
+    fn flat_floor(&self, model: &MatcherModel, pose: &Isometry3<f64>) -> f64 {
+        floor_at(&self.flat.best, self.place(pose), FLAT_PER_PLACE, FLAT_MIN_SUPPORT * model.total_length)
     }
 
     fn record(&mut self, score: f64, pose: Isometry3<f64>) {
         self.all.push((score, pose));
-        let recorded = self.recorded;
-        let best = self.best.entry(self.place(&pose)).or_default();
-        best.push(std::cmp::Reverse(Score(score)));
-        if best.len() > recorded {
-            best.pop();
-        }
+        let place = self.place(&pose);
+        keep_best(&mut self.best, place, self.recorded, score);
+    }
+
+    fn record_flat(&mut self, score: f64, pose: Isometry3<f64>) {
+        self.flat.all.push((score, pose));
+        let place = self.place(&pose);
+        keep_best(&mut self.flat.best, place, FLAT_PER_PLACE, score);
+    }
+}
+
+/// The support a hypothesis at `place` must exceed: `floor`, or once `recorded` are kept
+/// there, the least of them.
+fn floor_at(best: &Places, place: [i32; 3], recorded: usize, floor: f64) -> f64 {
+    match best.get(&place).and_then(|best| Some((best.len(), best.peek()?.0.0))) {
+        Some((kept, least)) if kept == recorded => floor.max(least),
+        _ => floor,
+    }
+}
+
+fn keep_best(best: &mut Places, place: [i32; 3], recorded: usize, score: f64) {
+    let best = best.entry(place).or_default();
+    best.push(std::cmp::Reverse(Score(score)));
+    if best.len() > recorded {
+        best.pop();
     }
 }
 
@@ -231,9 +281,16 @@ pub(crate) fn for_each_hypothesis(
                     let points = [on(sj.a, mi), on(sj.b, mi), on(sl.a, mk), on(sl.b, mk)];
                     let Some(t) = translation_from_points(&rotation, &points) else { continue };
                     let pose = Isometry3::from_parts(t.into(), rotation);
-                    if let Some(score) = support_score(model, &pose, scene, free_lines, p, sink.floor(&pose), &mut near)
-                    {
-                        sink.record(score, pose);
+                    let floor = sink.floor(&pose);
+                    // Short of the floor, a pose flat on the table is still worth a table look.
+                    let flat = p.table.as_ref().is_some_and(|t| nearly_flat(t, model, &pose));
+                    let least = if flat { floor.min(sink.flat_floor(model, &pose)) } else { floor };
+                    if let Some(score) = support_score(model, &pose, scene, free_lines, p, least, &mut near) {
+                        if score > floor {
+                            sink.record(score, pose);
+                        } else {
+                            sink.record_flat(score, pose);
+                        }
                     }
                 }
             }
@@ -289,7 +346,7 @@ mod tests {
         let mut scene = lines_at(&model, &first, |_| true, &mut rng);
         scene.extend(lines_at(&model, &second, |k| k % 3 == 0, &mut rng));
         let views = characteristic_views(&model, &p);
-        let found = hypotheses(&model, &scene, &scene_pairs(&scene, &p), &views, &p);
+        let (found, _) = hypotheses(&model, &scene, &scene_pairs(&scene, &p), &views, &p);
         let at_first = found.iter().filter(|(_, pose)| near(pose, &first)).count();
         let best_at_second = found.iter().filter(|(_, pose)| near(pose, &second)).map(|(s, _)| *s).fold(0.0, f64::max);
         let least_at_first =

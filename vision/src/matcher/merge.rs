@@ -42,6 +42,17 @@ pub fn locate_all(
         let third = hidden_in_part(models, &searches, (&kept, &claimed), p, ev);
         resolve(models, (scene, p), third, &mut kept, &mut claimed, image);
     }
+    if let Some(ev) = image.filter(|_| p.table.is_some()) {
+        let (solids, explained) = (solids_of(models, &kept), explained_by(models, &kept, ev));
+        let on_table: Vec<Located> = models
+            .par_iter()
+            .zip(searches.par_iter())
+            .flat_map_iter(|(m, s)| {
+                super::table_look::locate(m, scene, &s.flat, &claimed, p, ev, (&solids, &explained))
+            })
+            .collect();
+        resolve(models, (scene, p), on_table, &mut kept, &mut claimed, image);
+    }
     if let Some(ev) = image.filter(|ev| !ev.lines.is_empty()) {
         for i in 0..kept.len() {
             if let Some(rival) = rival_reading(models, scene, p, ev, &kept, i) {

@@ -42,7 +42,8 @@
 //! - [`light`]: the scene's light as faces' grey levels show it.
 //! - [`shading`]: the grey levels of a reading's faces, read off the edgels beside its edges.
 //! - [`table`]: the table the parts rest on; readings through it are refused.
-//! - [`merge`]: all models in parallel, reports merged, the second and third looks.
+//! - [`table_look`]: parts lying flat on the table on too few 3D lines for the first look.
+//! - [`merge`]: all models in parallel, reports merged, the second, third and table looks.
 //!
 //! The matcher depends on the front end's output types only ([`crate::front_end`]), never the
 //! other way round; within it, [`model`] is what the others share and imports none of them.
@@ -61,6 +62,7 @@ pub mod second_look;
 pub mod shading;
 pub mod support;
 pub mod table;
+pub mod table_look;
 pub mod turnover;
 pub mod verify;
 pub mod views;

@@ -64,6 +64,10 @@ pub struct MatcherModel {
     /// The lines near each cell of a grid over the model, laid out on the first search for its
     /// support distance (kept with it).
     pub(crate) grid: std::sync::OnceLock<LineGrid>,
+    /// The outward normals of the faces the part can lie on (those of its convex hull's facets
+    /// that are faces of the solid), model frame: a part lying flat on the table has one of
+    /// them pointing straight down.
+    pub(crate) resting: Vec<Vector3<f64>>,
 }
 
 impl MatcherModel {
@@ -80,6 +84,7 @@ impl MatcherModel {
         let bounds = m.mesh.bounds().unwrap_or((Point3::origin(), Point3::origin()));
         let face_sides = lines.iter().zip(&faces).map(|(l, n)| face_sides(l, n, &triangles)).collect();
         MatcherModel {
+            resting: resting_normals(&triangles),
             face_sides,
             convex: is_convex(&triangles),
             interior: interior_points(bounds, &triangles),
@@ -98,6 +103,24 @@ impl MatcherModel {
             grid: std::sync::OnceLock::new(),
         }
     }
+}
+
+/// The outward normals of the faces of `triangles` that lie on the solid's convex hull (no
+/// corner beyond their plane), each once.
+fn resting_normals(triangles: &[[Point3<f64>; 3]]) -> Vec<Vector3<f64>> {
+    let mut out: Vec<Vector3<f64>> = Vec::new();
+    for t in triangles {
+        let n = (t[1] - t[0]).cross(&(t[2] - t[0]));
+        if n.norm() < 1e-12 {
+            continue;
+        }
+        let n = n.normalize();
+        let on_hull = triangles.iter().flatten().all(|c| (c - t[0]).dot(&n) <= 1e-7);
+        if on_hull && !out.iter().any(|o| (o - n).norm() < 1e-6) {
+            out.push(n);
+        }
+    }
+    out
 }
 
 /// The mean albedo of a mesh's faces (0.5 for a mesh without faces).

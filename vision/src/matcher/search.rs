@@ -22,6 +22,9 @@ pub fn locate(model: &MatcherModel, scene: &[Seg], p: &MatchParams, image: Optio
 pub(crate) struct Search {
     pub(crate) found: Vec<Located>,
     pub(crate) doubtful: Vec<Candidate>,
+    /// Hypotheses short of the first look's support that put the part flat on the table, for
+    /// the table look ([`super::table_look`]).
+    pub(crate) flat: Vec<(f64, Isometry3<f64>)>,
 }
 
 /// [`locate`], with the scene's seed pairs given (every model's matcher searches the same).
@@ -43,7 +46,7 @@ pub(crate) fn locate_from(
     };
     let mut free = vec![true; scene.len()];
     let mut found = Vec::new();
-    let mut seen = hypotheses(model, scene, pairs, views, p);
+    let (mut seen, flat) = hypotheses(model, scene, pairs, views, p);
     let mut doubtful = Vec::new();
     for round in 0..p.max_instances {
         if round > 0 {
@@ -98,7 +101,7 @@ pub(crate) fn locate_from(
         doubtful.clear();
     }
     doubtful.sort_by(|a, b| b.score.total_cmp(&a.score));
-    Search { found, doubtful }
+    Search { found, doubtful, flat }
 }
 
 /// `c`, its pose refined on the image as well (3D lines alone leave flat parts a few degrees

@@ -16,7 +16,7 @@
 //! `widgets.toml` 1-500, six lay 17-40 mm under it and three 2-6 mm.
 
 use super::model::{MatcherModel, Table};
-use nalgebra::Isometry3;
+use nalgebra::{Isometry3, Vector3};
 
 /// How far (metres) a reading's lowest corner may lie under the table top: see the module's
 /// figures. Right readings came within 4.1 mm; this leaves them room.
@@ -31,6 +31,44 @@ pub fn cuts(table: &Table, model: &MatcherModel, pose: &Isometry3<f64>) -> bool 
 /// Whether a reading of `model` at `pose` is refused for cutting into the table, if one is known.
 pub(crate) fn through_table(table: Option<&Table>, model: &MatcherModel, pose: &Isometry3<f64>) -> bool {
     table.is_some_and(|t| cuts(t, model, pose))
+}
+
+/// Whether `model` at `pose` lies nearly flat on `table`: one of its resting faces turned
+/// down within [`FLAT_TILT_DEG`] and its lowest corner within [`FLAT_NEAR_M`] of the top. (A
+/// pose from two short 3D lines is a few degrees and millimetres off.)
+pub(crate) fn nearly_flat(table: &Table, model: &MatcherModel, pose: &Isometry3<f64>) -> bool {
+    let up = Vector3::from(table.up);
+    let down = pose.rotation.inverse_transform_vector(&-up);
+    let cos = FLAT_TILT_DEG.to_radians().cos();
+    // The lowest corner is the one furthest along `down` in the model's frame: no corner need
+    // be carried into `cam` (this runs for every hypothesis of the first look).
+    model.resting.iter().any(|n| n.dot(&down) >= cos) && {
+        let deepest = model.lines.iter().flat_map(|l| [l.a, l.b]).map(|c| down.dot(&c.coords)).fold(f64::MIN, f64::max);
+        let lowest = up.dot(&pose.translation.vector) + table.camera_height_m - deepest;
+        lowest.abs() <= FLAT_NEAR_M
+    }
+}
+
+/// See [`nearly_flat`].
+pub(crate) const FLAT_TILT_DEG: f64 = 8.0;
+/// See [`nearly_flat`], metres.
+pub(crate) const FLAT_NEAR_M: f64 = 0.01;
+
+/// Whether `model` at `pose` rests flat on `table`: three corners not on one line lie within
+/// `within` (metres) of its top.
+pub(crate) fn rests_flat(table: &Table, model: &MatcherModel, pose: &Isometry3<f64>, within: f64) -> bool {
+    let mut on: Vec<nalgebra::Point3<f64>> = Vec::new();
+    for corner in model.lines.iter().flat_map(|l| [l.a, l.b]) {
+        if table.height_of(&(pose * corner)).abs() <= within && !on.iter().any(|c| (c - corner).norm() < 1e-6) {
+            on.push(corner);
+        }
+    }
+    let spans = |a: &nalgebra::Point3<f64>, b: &nalgebra::Point3<f64>, c: &nalgebra::Point3<f64>| {
+        (b - a).cross(&(c - a)).norm() > 1e-4
+    };
+    on.iter()
+        .enumerate()
+        .any(|(i, a)| on[i + 1..].iter().enumerate().any(|(k, b)| on[i + k + 2..].iter().any(|c| spans(a, b, c))))
 }
 
 #[cfg(test)]
@@ -79,6 +117,39 @@ mod tests {
         assert!(cuts(&table, &block, &at(-0.010)), "sunk 10 mm");
         assert!(!cuts(&table, &block, &at(0.05)), "lifted");
         assert!(!through_table(None, &block, &at(-0.010)), "no table known, nothing refused");
+    }
+
+    /// A wedge on each of its resting faces, turned off it by 0-14 degrees about a horizontal
+    /// axis and moved 0-16 mm up or down: judged nearly flat exactly when the turn is within
+    /// [`FLAT_TILT_DEG`] and its lowest corner, carried into `cam` corner by corner, within
+    /// [`FLAT_NEAR_M`] of the top. And it rests flat (three corners on the top) only untilted.
+    #[test]
+    fn nearly_flat_agrees_with_the_corners_heights() {
+        let wedge = model("wedge");
+        let cam_from_table = cam_from_table();
+        let table = Table::from_cam_from_table(&cam_from_table);
+        let corners: Vec<Point3<f64>> = wedge.lines.iter().flat_map(|l| [l.a, l.b]).collect();
+        let mut judged = [0, 0];
+        for n in &wedge.resting {
+            let onto = UnitQuaternion::rotation_between(n, &-nalgebra::Vector3::z())
+                .unwrap_or_else(|| UnitQuaternion::from_axis_angle(&nalgebra::Vector3::x_axis(), std::f64::consts::PI));
+            for tilt_deg in [0.0f64, 4.0, 7.5, 8.5, 14.0] {
+                for dz in [-0.016, -0.009, 0.0, 0.009, 0.011, 0.016] {
+                    let turn = UnitQuaternion::from_euler_angles(tilt_deg.to_radians(), 0.0, 0.0) * onto;
+                    let lowest = corners.iter().map(|c| (turn * c).z).fold(f64::MAX, f64::min);
+                    let pose =
+                        cam_from_table * Isometry3::from_parts(Translation3::new(0.03, -0.01, dz - lowest), turn);
+                    let lowest_in_cam = corners.iter().map(|c| table.height_of(&(pose * c))).fold(f64::MAX, f64::min);
+                    let expect = tilt_deg <= FLAT_TILT_DEG && lowest_in_cam.abs() <= FLAT_NEAR_M;
+                    assert_eq!(nearly_flat(&table, &wedge, &pose), expect, "face {n:?}, {tilt_deg} deg, {dz} m");
+                    judged[usize::from(expect)] += 1;
+                    if dz == 0.0 {
+                        assert_eq!(rests_flat(&table, &wedge, &pose, 1e-6), tilt_deg == 0.0, "{tilt_deg} deg");
+                    }
+                }
+            }
+        }
+        assert!(judged[0] > 20 && judged[1] > 20, "{judged:?}");
     }
 
     /// The matcher finds a block from its wireframe's lines where it rests on the table; where
