@@ -68,6 +68,8 @@ pub struct MatcherModel {
     /// that are faces of the solid), model frame: a part lying flat on the table has one of
     /// them pointing straight down.
     pub(crate) resting: Vec<Vector3<f64>>,
+    /// The lines' ends, each once (model frame).
+    pub(crate) corners: Vec<Point3<f64>>,
 }
 
 impl MatcherModel {
@@ -85,6 +87,7 @@ impl MatcherModel {
         let face_sides = lines.iter().zip(&faces).map(|(l, n)| face_sides(l, n, &triangles)).collect();
         MatcherModel {
             resting: resting_normals(&triangles),
+            corners: distinct_ends(&lines),
             face_sides,
             convex: is_convex(&triangles),
             interior: interior_points(bounds, &triangles),
@@ -103,6 +106,17 @@ impl MatcherModel {
             grid: std::sync::OnceLock::new(),
         }
     }
+}
+
+/// The ends of `lines`, each once.
+fn distinct_ends(lines: &[Seg]) -> Vec<Point3<f64>> {
+    let mut out: Vec<Point3<f64>> = Vec::new();
+    for c in lines.iter().flat_map(|l| [l.a, l.b]) {
+        if !out.iter().any(|o| (o - c).norm() < 1e-9) {
+            out.push(c);
+        }
+    }
+    out
 }
 
 /// The outward normals of the faces of `triangles` that lie on the solid's convex hull (no

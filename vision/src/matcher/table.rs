@@ -25,7 +25,7 @@ pub const MAX_BELOW_M: f64 = 0.006;
 /// Whether `model` at `pose` (`cam_from_model`) has a corner more than [`MAX_BELOW_M`] under
 /// the top of `table`.
 pub fn cuts(table: &Table, model: &MatcherModel, pose: &Isometry3<f64>) -> bool {
-    model.lines.iter().flat_map(|l| [l.a, l.b]).any(|corner| table.height_of(&(pose * corner)) < -MAX_BELOW_M)
+    model.corners.iter().any(|corner| table.height_of(&(pose * corner)) < -MAX_BELOW_M)
 }
 
 /// Whether a reading of `model` at `pose` is refused for cutting into the table, if one is known.
@@ -43,7 +43,7 @@ pub(crate) fn nearly_flat(table: &Table, model: &MatcherModel, pose: &Isometry3<
     // The lowest corner is the one furthest along `down` in the model's frame: no corner need
     // be carried into `cam` (this runs for every hypothesis of the first look).
     model.resting.iter().any(|n| n.dot(&down) >= cos) && {
-        let deepest = model.lines.iter().flat_map(|l| [l.a, l.b]).map(|c| down.dot(&c.coords)).fold(f64::MIN, f64::max);
+        let deepest = model.corners.iter().map(|c| down.dot(&c.coords)).fold(f64::MIN, f64::max);
         let lowest = up.dot(&pose.translation.vector) + table.camera_height_m - deepest;
         lowest.abs() <= FLAT_NEAR_M
     }
@@ -57,14 +57,10 @@ pub(crate) const FLAT_NEAR_M: f64 = 0.01;
 /// Whether `model` at `pose` rests flat on `table`: three corners not on one line lie within
 /// `within` (metres) of its top.
 pub(crate) fn rests_flat(table: &Table, model: &MatcherModel, pose: &Isometry3<f64>, within: f64) -> bool {
-    let mut on: Vec<nalgebra::Point3<f64>> = Vec::new();
-    for corner in model.lines.iter().flat_map(|l| [l.a, l.b]) {
-        if table.height_of(&(pose * corner)).abs() <= within && !on.iter().any(|c| (c - corner).norm() < 1e-6) {
-            on.push(corner);
-        }
-    }
-    let spans = |a: &nalgebra::Point3<f64>, b: &nalgebra::Point3<f64>, c: &nalgebra::Point3<f64>| {
-        (b - a).cross(&(c - a)).norm() > 1e-4
+    let on: Vec<&nalgebra::Point3<f64>> =
+        model.corners.iter().filter(|c| table.height_of(&(pose * *c)).abs() <= within).collect();
+    let spans = |a: &&nalgebra::Point3<f64>, b: &&nalgebra::Point3<f64>, c: &&nalgebra::Point3<f64>| {
+        (*b - *a).cross(&(*c - *a)).norm() > 1e-4
     };
     on.iter()
         .enumerate()
