@@ -288,7 +288,9 @@ pub(crate) fn for_each_hypothesis(
                     if let Some(score) = support_score(model, &pose, scene, free_lines, p, least, &mut near) {
                         if score > floor {
                             sink.record(score, pose);
-                        } else {
+                        } else if score <= sink.floor {
+                            // (Between the two floors lie the variants of better-supported
+                            // readings at a busy place: the first look's matter.)
                             sink.record_flat(score, pose);
                         }
                     }
