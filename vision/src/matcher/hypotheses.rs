@@ -281,18 +281,22 @@ pub(crate) fn for_each_hypothesis(
                     let points = [on(sj.a, mi), on(sj.b, mi), on(sl.a, mk), on(sl.b, mk)];
                     let Some(t) = translation_from_points(&rotation, &points) else { continue };
                     let pose = Isometry3::from_parts(t.into(), rotation);
-                    let floor = sink.floor(&pose);
-                    // Short of the floor, a pose flat on the table is still worth a table look.
-                    let flat = p.table.as_ref().is_some_and(|t| nearly_flat(t, model, &pose));
-                    let least = if flat { floor.min(sink.flat_floor(model, &pose)) } else { floor };
-                    if let Some(score) = support_score(model, &pose, scene, free_lines, p, least, &mut near) {
-                        if score > floor {
-                            sink.record(score, pose);
-                        } else if score <= sink.floor {
-                            // (Between the two floors lie the variants of better-supported
-                            // readings at a busy place: the first look's matter.)
-                            sink.record_flat(score, pose);
-                        }
+                    // Counted in full whatever the floor (the count stops at no floor), so the
+                    // flat test waits for a score that needs it.
+                    let Some(score) = support_score(model, &pose, scene, free_lines, p, f64::MIN, &mut near) else {
+                        continue;
+                    };
+                    if score > sink.floor(&pose) {
+                        sink.record(score, pose);
+                    } else if score <= sink.floor
+                        && score > FLAT_MIN_SUPPORT * model.total_length
+                        && p.table.as_ref().is_some_and(|t| nearly_flat(t, model, &pose))
+                        && score > sink.flat_floor(model, &pose)
+                    {
+                        // Short of the first look's floor, a pose flat on the table is still
+                        // worth a table look. (Between that floor and a busy place's lie the
+                        // variants of better-supported readings: the first look's matter.)
+                        sink.record_flat(score, pose);
                     }
                 }
             }
