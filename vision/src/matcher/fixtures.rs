@@ -1,7 +1,7 @@
 //! What the matcher's unit tests set up alike.
 
 use super::model::MatcherModel;
-use nalgebra::Vector3;
+use nalgebra::{Isometry3, Vector3};
 
 pub(crate) use crate::front_end::rectify::tests::camera_at;
 
@@ -9,6 +9,19 @@ pub(crate) use crate::front_end::rectify::tests::camera_at;
 pub(crate) fn model(name: &str) -> MatcherModel {
     let lib = mesh::Library::load_default().unwrap();
     MatcherModel::from_model(lib.get(name).unwrap_or_else(|| panic!("no model `{name}` in the library")))
+}
+
+/// Whether every line of `model` at `got` lies on one of its lines at `truth`, ends within
+/// `tolerance` (metres): the same pose up to the model's symmetry.
+pub(crate) fn on_its_lines(model: &MatcherModel, got: &Isometry3<f64>, truth: &Isometry3<f64>, tolerance: f64) -> bool {
+    model.lines.iter().all(|l| {
+        let (a, b) = (got * l.a, got * l.b);
+        model.lines.iter().any(|m| {
+            let (ma, mb) = (truth * m.a, truth * m.b);
+            ((ma - a).norm() < tolerance && (mb - b).norm() < tolerance)
+                || ((ma - b).norm() < tolerance && (mb - a).norm() < tolerance)
+        })
+    })
 }
 
 /// A tiny deterministic generator, so the test needs no RNG crate.

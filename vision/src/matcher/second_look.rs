@@ -277,49 +277,10 @@ fn keep(best: &mut Vec<(f64, Isometry3<f64>)>, score: f64, pose: Isometry3<f64>)
 mod tests {
     use super::*;
 
-    /// A block seen by a camera above it, with one 3D line (a fragment of a top edge) and, in the
-    /// image, edgels along every camera-facing edge and an image line along each of them.
-    #[test]
-    fn one_3d_line_and_the_image_find_a_block() {
-        let model = crate::matcher::fixtures::model("block");
-        let cam = crate::matcher::fixtures::camera_at(Point3::new(0.0, -0.6, 0.6));
-        let world_from_model = Isometry3::from_parts(
-            Translation3::new(0.01, -0.02, 0.015),
-            UnitQuaternion::from_euler_angles(0.0, 0.0, 0.5),
-        );
-        let pose = cam.cam_from_world() * world_from_model;
-        let (edges, lines) = crate::matcher::verify::drawn::model_edges(&model, &pose, &cam);
-        // The one 3D line: 80% of the longest camera-facing edge.
-        let k = (0..model.lines.len())
-            .filter(|&k| model.faces_camera(k, &pose))
-            .max_by(|&a, &b| model.lines[a].len.total_cmp(&model.lines[b].len))
-            .unwrap();
-        let t = model.lines[k].transformed(&pose);
-        let scene = vec![Seg::new(t.a + (t.b - t.a) * 0.1, t.a + (t.b - t.a) * 0.9)];
-        let ev = ImageEvidence::new(&cam, &edges, lines);
-        let nothing_located = Explained::of([], ev.cam);
-        let found = locate(&model, &scene, &[false], &MatchParams::default(), &ev, (&[], &nothing_located));
-        assert_eq!(found.len(), 1);
-        // Right up to the block's symmetry: every located edge lies on a true edge.
-        let got = found[0].cam_from_model;
-        for l in &model.lines {
-            let (a, b) = (got * l.a, got * l.b);
-            assert!(
-                model.lines.iter().any(|m| {
-                    let (ma, mb) = (pose * m.a, pose * m.b);
-                    ((ma - a).norm() < 1e-3 && (mb - b).norm() < 1e-3)
-                        || ((ma - b).norm() < 1e-3 && (mb - a).norm() < 1e-3)
-                }),
-                "a located edge is off the block"
-            );
-        }
-    }
-
-    /// The same block on the table with the image's edgels cut off on one side (as a part not
-    /// located might hide them), leaving 75-85% of its wireframe along edgels: on its one 3D
-    /// line it is found only where the table is known, for it rests flat on it.
-    #[test]
-    fn one_3d_line_finds_a_part_partly_shown_only_flat_on_the_table() {
+    /// A block resting on a table (the world's z = 0) seen from 0.85 m off, the camera looking
+    /// down: the block, the camera, its pose (`cam_from_model`) and one 3D line, 80% of its
+    /// longest camera-facing edge.
+    fn block_on_one_line() -> (MatcherModel, mesh::PinholeCamera, Isometry3<f64>, Vec<Seg>) {
         let model = crate::matcher::fixtures::model("block");
         let cam = crate::matcher::fixtures::camera_at(Point3::new(0.0, -0.6, 0.6));
         let lowest = model.lines.iter().flat_map(|l| [l.a.z, l.b.z]).fold(f64::MAX, f64::min);
@@ -328,13 +289,39 @@ mod tests {
             UnitQuaternion::from_euler_angles(0.0, 0.0, 0.5),
         );
         let pose = cam.cam_from_world() * world_from_model;
-        let (all_edges, lines) = crate::matcher::verify::drawn::model_edges(&model, &pose, &cam);
         let k = (0..model.lines.len())
             .filter(|&k| model.faces_camera(k, &pose))
             .max_by(|&a, &b| model.lines[a].len.total_cmp(&model.lines[b].len))
             .unwrap();
         let t = model.lines[k].transformed(&pose);
         let scene = vec![Seg::new(t.a + (t.b - t.a) * 0.1, t.a + (t.b - t.a) * 0.9)];
+        (model, cam, pose, scene)
+    }
+
+    /// The block on its one 3D line, with edgels along every camera-facing edge in the image
+    /// and an image line along each of them.
+    #[test]
+    fn one_3d_line_and_the_image_find_a_block() {
+        let (model, cam, pose, scene) = block_on_one_line();
+        let (edges, lines) = crate::matcher::verify::drawn::model_edges(&model, &pose, &cam);
+        let ev = ImageEvidence::new(&cam, &edges, lines);
+        let nothing_located = Explained::of([], ev.cam);
+        let found = locate(&model, &scene, &[false], &MatchParams::default(), &ev, (&[], &nothing_located));
+        assert_eq!(found.len(), 1);
+        // Right up to the block's symmetry: every located edge lies on a true edge.
+        assert!(
+            crate::matcher::fixtures::on_its_lines(&model, &found[0].cam_from_model, &pose, 1e-3),
+            "a located edge is off the block"
+        );
+    }
+
+    /// The same block with the image's edgels cut off on one side (as a part not located might
+    /// hide them), leaving 75-85% of its wireframe along edgels: on its one 3D line it is found
+    /// only where the table is known, for it rests flat on it.
+    #[test]
+    fn one_3d_line_finds_a_part_partly_shown_only_flat_on_the_table() {
+        let (model, cam, pose, scene) = block_on_one_line();
+        let (all_edges, lines) = crate::matcher::verify::drawn::model_edges(&model, &pose, &cam);
         // The edgels left of a cut moved in from the right until under 85% of the wireframe
         // runs along them.
         let cut_at = |x_cut: f32| {

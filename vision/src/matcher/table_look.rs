@@ -132,7 +132,7 @@ fn same_place(a: &Isometry3<f64>, b: &Isometry3<f64>) -> bool {
 mod tests {
     use super::*;
     use crate::matcher::fixtures::{camera_at, model};
-    use crate::matcher::hypotheses::{hypotheses, scene_pairs};
+    use crate::matcher::hypotheses::{Scored, hypotheses, scene_pairs};
     use crate::matcher::views::characteristic_views;
     use nalgebra::Point3;
 
@@ -169,15 +169,13 @@ mod tests {
         Scene { block, cam, truth, lines, table }
     }
 
-    /// The block's lines at `found` lie on its true lines (it is symmetric).
-    fn on_the_truth(s: &Scene, found: &Isometry3<f64>) -> bool {
-        s.block.lines.iter().all(|l| {
-            let (a, b) = (found * l.a, found * l.b);
-            s.block.lines.iter().any(|m| {
-                let (ma, mb) = (s.truth * m.a, s.truth * m.b);
-                ((ma - a).norm() < 1e-3 && (mb - b).norm() < 1e-3) || ((ma - b).norm() < 1e-3 && (mb - a).norm() < 1e-3)
-            })
-        })
+    /// The first look's hypotheses of the block, over its floor and flat ones apart, with the
+    /// table known.
+    fn first_look(s: &Scene) -> (MatchParams, Vec<Scored>, Vec<Scored>) {
+        let p = MatchParams { table: Some(s.table), ..MatchParams::default() };
+        let views = characteristic_views(&s.block, &p);
+        let (all, flat) = hypotheses(&s.block, &s.lines, &scene_pairs(&s.lines, &p), &views, &p);
+        (p, all, flat)
     }
 
     /// The first look records nothing from the two lines, but keeps flat hypotheses apart, and
@@ -185,9 +183,7 @@ mod tests {
     #[test]
     fn a_part_on_two_short_3d_lines_is_found_lying_flat() {
         let s = block_at(0.0);
-        let p = MatchParams { table: Some(s.table), ..MatchParams::default() };
-        let views = characteristic_views(&s.block, &p);
-        let (all, flat) = hypotheses(&s.block, &s.lines, &scene_pairs(&s.lines, &p), &views, &p);
+        let (p, all, flat) = first_look(&s);
         assert!(all.is_empty(), "{} hypotheses over the first look's floor", all.len());
         assert!(!flat.is_empty(), "no flat hypothesis kept");
         let (edges, image_lines) = crate::matcher::verify::drawn::model_edges(&s.block, &s.truth, &s.cam);
@@ -195,7 +191,10 @@ mod tests {
         let nothing = Explained::of([], ev.cam);
         let found = locate(&s.block, &s.lines, &flat, &[false; 2], &p, &ev, (&[], &nothing));
         assert!(!found.is_empty(), "not found");
-        assert!(found.iter().all(|f| on_the_truth(&s, &f.cam_from_model)), "a reading off the block");
+        assert!(
+            found.iter().all(|f| crate::matcher::fixtures::on_its_lines(&s.block, &f.cam_from_model, &s.truth, 1e-3)),
+            "a reading off the block"
+        );
     }
 
     /// The same block held 100 mm over the table (higher than it is long, so no reading of the
@@ -205,9 +204,7 @@ mod tests {
     #[test]
     fn a_part_off_the_table_gives_the_table_look_nothing() {
         let s = block_at(0.1);
-        let p = MatchParams { table: Some(s.table), ..MatchParams::default() };
-        let views = characteristic_views(&s.block, &p);
-        let (all, flat) = hypotheses(&s.block, &s.lines, &scene_pairs(&s.lines, &p), &views, &p);
+        let (_, all, flat) = first_look(&s);
         assert!(all.is_empty() && flat.is_empty(), "{} and {} hypotheses", all.len(), flat.len());
     }
 
