@@ -84,7 +84,7 @@ pub fn locate_parts(
     fe: &FrontEnd,
     cam_from_table: Option<&Isometry3<f64>>,
 ) -> Vec<Located> {
-    let evidence = vision::matcher::verify::ImageEvidence::of(&pair.calib.left, fe);
+    let evidence = vision::matcher::verify::ImageEvidence::of_pair(&pair.calib, fe);
     vision::matcher::locate_all(models, &scene_lines(fe), &part_params(cam_from_table), Some(&evidence))
 }
 
@@ -194,7 +194,7 @@ fn refined_in_stereo(
         View { ev: &right, cam_from_left: pair.calib.right.world_from_cam.inverse() },
     ];
     STEREO_PASSES.iter().fold(*cam_from_flag, |pose, &(search, checker_only)| {
-        let fitted = |k: usize| !checker_only || flag.is_marking(k);
+        let fitted = |_: usize, k: usize, _: &nalgebra::Point3<f64>| !checker_only || flag.is_marking(k);
         refine_in_views(flag, &pose, &views, search, &fitted).unwrap_or(pose)
     })
 }

@@ -256,9 +256,9 @@ fn vision(args: &BenchArgs) -> anyhow::Result<()> {
     let fe = vision::front_end::slices::run_sliced(&left, &right, &s.calib, &params, 8);
     let lines: Vec<vision::matcher::Seg> =
         fe.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
-    let evidence = vision::matcher::verify::ImageEvidence::of(&s.calib.left, &fe);
+    let evidence = vision::matcher::verify::ImageEvidence::of_pair(&s.calib, &fe);
     let image_evidence = median_ms(args.runs as usize, || {
-        std::hint::black_box(vision::matcher::verify::ImageEvidence::of(&s.calib.left, &fe));
+        std::hint::black_box(vision::matcher::verify::ImageEvidence::of_pair(&s.calib, &fe));
     });
     let matching = median_ms(args.runs as usize, || {
         std::hint::black_box(vision::matcher::locate_all(&models, &lines, &mp, Some(&evidence)));
@@ -267,7 +267,7 @@ fn vision(args: &BenchArgs) -> anyhow::Result<()> {
         let fe = vision::front_end::slices::run_sliced(&left, &right, &s.calib, &params, 8);
         let lines: Vec<vision::matcher::Seg> =
             fe.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
-        let evidence = vision::matcher::verify::ImageEvidence::of(&s.calib.left, &fe);
+        let evidence = vision::matcher::verify::ImageEvidence::of_pair(&s.calib, &fe);
         std::hint::black_box(vision::matcher::locate_all(&models, &lines, &mp, Some(&evidence)));
     });
     results.push(("image_evidence", image_evidence));

@@ -269,7 +269,7 @@ fn run_locate(world: &std::path::Path, scenes: u64, seed: u64, json: bool) -> an
         let lines: Vec<vision::matcher::Seg> =
             p.front_end.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
         let clock = std::time::Instant::now();
-        let evidence = vision::matcher::verify::ImageEvidence::of(&calib.left, &p.front_end);
+        let evidence = vision::matcher::verify::ImageEvidence::of_pair(&calib, &p.front_end);
         let located = vision::matcher::locate_all(&models, &lines, &params, Some(&evidence));
         match_ms.push(clock.elapsed().as_secs_f64() * 1e3);
         let stats = locate_stats(&located, &p.scene, &scn.library, &calib, &p.left.depth, &symmetry);

@@ -36,7 +36,7 @@ pub fn run(
     let p = run_pipeline(&scn, seed);
     let lines: Vec<Seg> = p.front_end.lines3d.iter().map(|l| Seg::new(l.start(), l.end())).collect();
     let sought = matcher_models(&scn.library, models.as_deref());
-    let evidence = vision::matcher::verify::ImageEvidence::of(&calib.left, &p.front_end);
+    let evidence = vision::matcher::verify::ImageEvidence::of_pair(&calib, &p.front_end);
     let located = locate_all(&sought, &lines, &part_params(Some(&calib.left.cam_from_world())), Some(&evidence));
     // Compare with the truth (evaluation only).
     let truths: Vec<(String, Isometry3<f64>)> =

@@ -11,6 +11,21 @@ pub(crate) fn model(name: &str) -> MatcherModel {
     MatcherModel::from_model(lib.get(name).unwrap_or_else(|| panic!("no model `{name}` in the library")))
 }
 
+/// A verged pair of 512 x 512 cameras 0.2 m apart, 0.7 m from the origin they look at, z up.
+pub(crate) fn verged_pair() -> (mesh::PinholeCamera, mesh::PinholeCamera) {
+    let cam = |x: f64| {
+        mesh::PinholeCamera::looking_at(
+            (512, 512),
+            1000.0,
+            [255.5, 255.5],
+            nalgebra::Point3::new(x, -0.55, 0.45),
+            nalgebra::Point3::origin(),
+            Vector3::z(),
+        )
+    };
+    (cam(-0.1), cam(0.1))
+}
+
 /// Whether every line of `model` at `got` lies on one of its lines at `truth`, ends within
 /// `tolerance` (metres): the same pose up to the model's symmetry.
 pub(crate) fn on_its_lines(model: &MatcherModel, got: &Isometry3<f64>, truth: &Isometry3<f64>, tolerance: f64) -> bool {

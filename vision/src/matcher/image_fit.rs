@@ -99,13 +99,13 @@ fn image_rows(
     ev: &ImageEvidence,
     cam_from_left: &Isometry3<f64>,
     search: f64,
-    fitted: &dyn Fn(usize) -> bool,
+    keep: &dyn Fn(usize, &Point3<f64>) -> bool,
     rows: &mut Rows,
 ) {
     let cam = ev.cam;
     let seen = cam_from_left * pose;
     for (k, line) in model.lines.iter().enumerate() {
-        if !fitted(k) || !model.faces_camera(k, &seen) {
+        if !model.faces_camera(k, &seen) {
             continue;
         }
         let (a, b) = (seen * line.a, seen * line.b);
@@ -117,9 +117,12 @@ fn image_rows(
         let dir = (pb - pa) / len;
         let normal = Vector2::new(-dir.y, dir.x);
         let steps = (len / SAMPLE_PX) as usize;
-        for k in 1..steps {
-            let t = k as f64 / steps as f64;
+        for step in 1..steps {
+            let t = step as f64 / steps as f64;
             let x = a + (b - a) * t;
+            if !keep(k, &x) {
+                continue;
+            }
             let Some(u) = cam.project_cam(&x) else { continue };
             let Some(d) = nearest_edgel_across(ev, &u, &dir, search) else { continue };
             let z = x.z;
@@ -174,7 +177,7 @@ pub fn refine_in_image(
 ) -> Option<Isometry3<f64>> {
     let rows_at = |pose: &Isometry3<f64>| {
         let mut rows = Rows::new();
-        image_rows(model, pose, ev, &Isometry3::identity(), search, &|_| true, &mut rows);
+        image_rows(model, pose, ev, &Isometry3::identity(), search, &|_, _| true, &mut rows);
         if rows.count < 12 {
             return None;
         }
@@ -216,19 +219,21 @@ pub struct View<'a> {
 
 /// The pose refined on the edgels of several images at once (the stereo pair): each model edge
 /// pulled onto its edgels in both, so that their disparity, to a fraction of a pixel along the
-/// whole wireframe, fixes the depth and tilt that one image and the 3D lines fix poorly. `None`
-/// when the images offer too little to fit to.
+/// whole wireframe, fixes the depth and tilt that one image and the 3D lines fix poorly. Only
+/// the samples `keep(view, line, x)` lets through are fitted (`x` in that view's camera
+/// frame: what may be seen of the model there). `None` when the images offer too little to
+/// fit to.
 pub fn refine_in_views(
     model: &MatcherModel,
     pose: &Isometry3<f64>,
     views: &[View],
     search: f64,
-    fitted: &dyn Fn(usize) -> bool,
+    keep: &dyn Fn(usize, usize, &Point3<f64>) -> bool,
 ) -> Option<Isometry3<f64>> {
     let rows_at = |pose: &Isometry3<f64>| {
         let mut rows = Rows::new();
-        for v in views {
-            image_rows(model, pose, v.ev, &v.cam_from_left, search, fitted, &mut rows);
+        for (i, v) in views.iter().enumerate() {
+            image_rows(model, pose, v.ev, &v.cam_from_left, search, &|k, x| keep(i, k, x), &mut rows);
         }
         (rows.count >= 12 * views.len()).then_some(rows)
     };
@@ -238,7 +243,6 @@ pub fn refine_in_views(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use mesh::PinholeCamera;
 
     /// From 3 degrees and 3 mm off, the image and one true 3D line bring a widget back to
     /// within a fraction of a millimetre and degree of where its edgels are.
@@ -279,17 +283,7 @@ mod tests {
     #[test]
     fn a_flag_a_degree_off_is_pulled_onto_its_edgels_in_both_images() {
         let model = crate::matcher::fixtures::model("flag");
-        let cam = |x: f64| {
-            PinholeCamera::looking_at(
-                (512, 512),
-                1000.0,
-                [255.5, 255.5],
-                Point3::new(x, -0.55, 0.45),
-                Point3::origin(),
-                Vector3::z(),
-            )
-        };
-        let (left, right) = (cam(-0.1), cam(0.1));
+        let (left, right) = crate::matcher::fixtures::verged_pair();
         let world_from_flag = Isometry3::from_parts(
             Translation3::new(0.01, 0.02, 0.05),
             UnitQuaternion::from_euler_angles(1.1, 0.2, 0.4),
@@ -309,7 +303,7 @@ mod tests {
             * left_from_flag
             * Isometry3::rotation(Vector3::new(0.012, -0.01, 0.004));
         for (name, vs) in [("both images", &views[..]), ("the right image", &views[1..])] {
-            let got = refine_in_views(&model, &start, vs, 3.0, &|k| model.is_marking(k)).unwrap();
+            let got = refine_in_views(&model, &start, vs, 3.0, &|_, k, _| model.is_marking(k)).unwrap();
             let e = left_from_flag.inverse() * got;
             let (mm, deg) = (e.translation.vector.norm() * 1e3, e.rotation.angle().to_degrees());
             assert!(mm < 0.01 && deg < 0.01, "{name}: {mm:.4} mm, {deg:.4} deg off");

@@ -44,6 +44,7 @@
 //! - [`table`]: the table the parts rest on; readings through it are refused.
 //! - [`table_look`]: parts lying flat on the table on too few 3D lines for the first look.
 //! - [`merge`]: all models in parallel, reports merged, the second, third and table looks.
+//! - [`polish`]: each report's pose pulled onto the edgels of both images at once.
 //!
 //! The matcher depends on the front end's output types only ([`crate::front_end`]), never the
 //! other way round; within it, [`model`] is what the others share and imports none of them.
@@ -55,6 +56,7 @@ pub mod light;
 pub mod merge;
 pub mod model;
 pub mod occlusion;
+pub mod polish;
 pub mod pose_fit;
 pub mod ranking;
 pub mod search;

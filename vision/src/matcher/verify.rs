@@ -12,8 +12,9 @@ use mesh::PinholeCamera;
 use nalgebra::{Isometry3, Point2, Vector2};
 
 /// What the image offers to verify against: the left camera, its edgels, the straight image
-/// lines stereo did not lift to 3D (mostly edges near the rasters' direction), and, from a
-/// front-end run, the depths stereo gave the edgels it matched.
+/// lines stereo did not lift to 3D (mostly edges near the rasters' direction), from a
+/// front-end run the depths stereo gave the edgels it matched, and from a calibrated pair the
+/// right image's edgels ([`RightImage`]).
 pub struct ImageEvidence<'a> {
     pub cam: &'a PinholeCamera,
     pub edges: &'a EdgeMap,
@@ -22,6 +23,15 @@ pub struct ImageEvidence<'a> {
     mask: std::sync::Arc<EdgeMask>,
     /// The depths stereo gave the left image's matched edgels, by pixel (none without stereo).
     depths: Option<std::sync::Arc<EdgelDepths>>,
+    /// The pair's other image (none for the left image alone).
+    pub right: Option<std::sync::Arc<RightImage<'a>>>,
+}
+
+/// The right image of the pair, for fitting poses to both images at once
+/// ([`super::polish`]): its camera's edgels, and where that camera sits from the left one.
+pub struct RightImage<'a> {
+    pub ev: ImageEvidence<'a>,
+    pub right_from_cam: Isometry3<f64>,
 }
 
 /// A straight line of the left image, in pixels, with the plane through the camera centre that
@@ -38,7 +48,7 @@ const MIN_IMAGE_LINE_PX: f64 = 20.0;
 
 impl<'a> ImageEvidence<'a> {
     pub fn new(cam: &'a PinholeCamera, edges: &'a EdgeMap, lines: Vec<ImageLine>) -> ImageEvidence<'a> {
-        ImageEvidence { cam, edges, lines, mask: std::sync::Arc::new(EdgeMask::of(edges)), depths: None }
+        ImageEvidence { cam, edges, lines, mask: std::sync::Arc::new(EdgeMask::of(edges)), depths: None, right: None }
     }
 
     /// The first edgel within [`NEAR_PX`] across a line running along `dir` through (`x`, `y`)
@@ -54,7 +64,14 @@ impl<'a> ImageEvidence<'a> {
 
     /// The same edgels with other image lines.
     pub(crate) fn with_lines(&self, lines: Vec<ImageLine>) -> ImageEvidence<'a> {
-        ImageEvidence { cam: self.cam, edges: self.edges, lines, mask: self.mask.clone(), depths: self.depths.clone() }
+        ImageEvidence {
+            cam: self.cam,
+            edges: self.edges,
+            lines,
+            mask: self.mask.clone(),
+            depths: self.depths.clone(),
+            right: self.right.clone(),
+        }
     }
 
     /// The evidence of one front-end run on the left camera `cam`.
@@ -82,6 +99,22 @@ impl<'a> ImageEvidence<'a> {
         let mut ev = ImageEvidence::new(cam, &fe.left, lines);
         ev.depths = fe.rect.as_ref().map(|rect| std::sync::Arc::new(EdgelDepths::of(fe, rect)));
         ev
+    }
+
+    /// The evidence of one front-end run on a calibrated pair: [`ImageEvidence::of`] the left
+    /// image, with the right image's edgels.
+    pub fn of_pair(calib: &'a mesh::StereoCalibration, fe: &'a crate::front_end::FrontEnd) -> ImageEvidence<'a> {
+        let right = RightImage {
+            ev: ImageEvidence::new(&calib.right, &fe.right, Vec::new()),
+            right_from_cam: calib.right.cam_from_world() * calib.left.world_from_cam,
+        };
+        ImageEvidence::of(&calib.left, fe).with_right(right)
+    }
+
+    /// The same evidence with the pair's right image.
+    pub fn with_right(mut self, right: RightImage<'a>) -> ImageEvidence<'a> {
+        self.right = Some(std::sync::Arc::new(right));
+        self
     }
 
     /// The same evidence with stereo's depths at the edgels.
