@@ -231,12 +231,9 @@ fn judge(l: &Edgel, ls: &Shape, r: &Edgel, rs: &Shape, p: &PmfParams) -> Result<
 }
 
 fn candidates(left: &[Edgel], right: &[Edgel], p: &PmfParams) -> (Vec<usize>, Vec<Candidate>) {
-    let (rasters, left_rasters) = (Rasters::new(right), Rasters::new(left));
+    let rasters = Rasters::new(right);
     let (left_shape, right_shape) = (shapes(left, p), shapes(right, p));
-    let images = Pair {
-        left: Beside { edgels: left, shapes: &left_shape, rasters: &left_rasters },
-        right: Beside { edgels: right, shapes: &right_shape, rasters: &rasters },
-    };
+    let images = Pair { left: Beside::new(left, &left_shape), right: Beside::new(right, &right_shape) };
     let mut offsets = Vec::with_capacity(left.len() + 1);
     let mut out = Vec::new();
     for (l, ls) in left.iter().zip(&left_shape) {
@@ -267,17 +264,45 @@ fn candidates(left: &[Edgel], right: &[Edgel], p: &PmfParams) -> (Vec<usize>, Ve
     (offsets, out)
 }
 
-/// One image's edgels, with what candidate selection works out per edgel, by raster.
-struct Beside<'a> {
-    edgels: &'a [Edgel],
-    shapes: &'a [Shape],
-    rasters: &'a Rasters,
+/// One image's edgels as the strip test reads them: each raster's, in order of x, with the
+/// grey levels beside them towards smaller and larger x.
+struct Beside {
+    first_row: i32,
+    rows: Vec<Vec<(f32, f32, [f32; 2])>>,
+}
+
+impl Beside {
+    fn new(edgels: &[Edgel], shapes: &[Shape]) -> Beside {
+        let rasters = Rasters::new(edgels);
+        let rows = rasters
+            .rows
+            .iter()
+            .map(|row| {
+                let mut r: Vec<(f32, f32, [f32; 2])> = row
+                    .iter()
+                    .map(|&k| {
+                        let (e, s) = (&edgels[k as usize], &shapes[k as usize]);
+                        (e.x, e.y, sides_along_raster(e, s))
+                    })
+                    .collect();
+                r.sort_by(|a, b| a.0.total_cmp(&b.0));
+                r
+            })
+            .collect();
+        Beside { first_row: rasters.first_row, rows }
+    }
+
+    /// The edgels of raster `r`, by x.
+    fn row(&self, r: i32) -> &[(f32, f32, [f32; 2])] {
+        let k = r - self.first_row;
+        if k < 0 || k as usize >= self.rows.len() { &[] } else { &self.rows[k as usize] }
+    }
 }
 
 /// Both images' edgels, for the strip test.
-struct Pair<'a> {
-    left: Beside<'a>,
-    right: Beside<'a>,
+struct Pair {
+    left: Beside,
+    right: Beside,
 }
 
 /// What a strip of surface seen by one camera only says of a candidate ([`Pair::strip_says`]).
@@ -303,7 +328,7 @@ fn sides_along_raster(e: &Edgel, s: &Shape) -> [f32; 2] {
     if s.bright_right { [e.sides[0], e.sides[1]] } else { [e.sides[1], e.sides[0]] }
 }
 
-impl Pair<'_> {
+impl Pair {
     /// A narrow strip of surface beside an edge that one camera sees and the other does not (a
     /// face seen nearly edge-on, or background just beside an occluder): one image shows `X |
     /// strip | Y` along a raster where the other shows `X | Y`. The strip lies on the side of
@@ -317,51 +342,50 @@ impl Pair<'_> {
     /// silhouette's matches 0.5-1.6 px of disparity off along its length, and the wedge's pose
     /// 6 deg off.
     fn strip_says(&self, (l, ls): (&Edgel, &Shape), (r, rs): (&Edgel, &Shape), p: &PmfParams) -> Option<Strip> {
-        let beside = |image: &Beside, (a, sa), (b, sb), towards| strip_beside(image, (a, sa), (b, sb), towards, p);
-        if beside(&self.left, (l, ls), (r, rs), Towards::LargerX)
-            || beside(&self.right, (r, rs), (l, ls), Towards::SmallerX)
-        {
-            Some(Strip::Refuses)
-        } else if beside(&self.left, (l, ls), (r, rs), Towards::SmallerX)
-            || beside(&self.right, (r, rs), (l, ls), Towards::LargerX)
-        {
-            Some(Strip::Excuses)
-        } else {
-            None
+        let (gl, gr) = (sides_along_raster(l, ls), sides_along_raster(r, rs));
+        let alike = |i: usize| (gl[i] - gr[i]).abs() <= p.side_tolerance;
+        // Alike only on one side: a strip, if any, lies on the other, in one image or the other.
+        let (towards, left_strip, right_strip) = match (alike(0), alike(1)) {
+            (true, false) => (Towards::LargerX, Strip::Refuses, Strip::Excuses),
+            (false, true) => (Towards::SmallerX, Strip::Excuses, Strip::Refuses),
+            _ => return None,
+        };
+        let in_left = strip_beside(&self.left, l, (gl, gr), towards, p);
+        let in_right = strip_beside(&self.right, r, (gr, gl), towards, p);
+        match (in_left, in_right) {
+            (true, _) if left_strip == Strip::Refuses => Some(Strip::Refuses),
+            (_, true) if right_strip == Strip::Refuses => Some(Strip::Refuses),
+            (true, _) => Some(left_strip),
+            (_, true) => Some(right_strip),
+            _ => None,
         }
     }
 }
 
-/// Whether edgel `a` of `image`, set against edgel `b` of the other image, has a strip
-/// `towards` one side that the other image does not show: `a` and `b` alike on the side away
-/// from it (within `side_tolerance`) and not on its side, and an edgel of `a`'s raster up to
-/// `one_view_strip_px` that way with `b`'s grey beyond it and `a`'s (the strip's, within
-/// [`STRIP_TOLERANCE`]: the sides of a narrow strip are sampled through the blur) before it.
-fn strip_beside(
-    image: &Beside,
-    (a, sa): (&Edgel, &Shape),
-    (b, sb): (&Edgel, &Shape),
-    towards: Towards,
-    p: &PmfParams,
-) -> bool {
-    let (ga, gb) = (sides_along_raster(a, sa), sides_along_raster(b, sb));
-    let (strip, away, sign) = match towards {
-        Towards::LargerX => (1, 0, 1.0),
-        Towards::SmallerX => (0, 1, -1.0),
+/// Whether edgel `a` of `image` (grey levels beside it `ga`, along the raster), alike its
+/// would-be partner in the other image (`gb`) on the side away from `towards` and not on that
+/// side, has a strip there that the other image does not show: an edgel of `a`'s raster up to
+/// `one_view_strip_px` that way with `gb`'s grey beyond it and `a`'s before it (the strip's,
+/// within [`STRIP_TOLERANCE`]: the sides of a narrow strip are sampled through the blur).
+fn strip_beside(image: &Beside, a: &Edgel, (ga, gb): ([f32; 2], [f32; 2]), towards: Towards, p: &PmfParams) -> bool {
+    let (strip, away) = match towards {
+        Towards::LargerX => (1, 0),
+        Towards::SmallerX => (0, 1),
     };
-    if (ga[away] - gb[away]).abs() > p.side_tolerance || (ga[strip] - gb[strip]).abs() <= p.side_tolerance {
-        return false;
-    }
+    let (lo, hi) = match towards {
+        Towards::LargerX => (a.x, a.x + p.one_view_strip_px),
+        Towards::SmallerX => (a.x - p.one_view_strip_px, a.x),
+    };
     let row = a.y.round() as i32;
-    let rows = image.rasters.row(row - 1).iter().chain(image.rasters.row(row)).chain(image.rasters.row(row + 1));
-    rows.into_iter().any(|&k| {
-        let e = &image.edgels[k as usize];
-        let ahead = (e.x - a.x) * sign;
-        if ahead <= 0.0 || ahead > p.one_view_strip_px || (e.y - a.y).abs() > 0.5 {
-            return false;
-        }
-        let ge = sides_along_raster(e, &image.shapes[k as usize]);
-        (ge[strip] - gb[strip]).abs() <= p.side_tolerance && (ge[away] - ga[strip]).abs() <= STRIP_TOLERANCE
+    (row - 1..=row + 1).any(|r| {
+        let edgels = image.row(r);
+        let from = edgels.partition_point(|e| e.0 < lo);
+        edgels[from..].iter().take_while(|e| e.0 <= hi).any(|&(x, y, ge)| {
+            x != a.x
+                && (y - a.y).abs() <= 0.5
+                && (ge[strip] - gb[strip]).abs() <= p.side_tolerance
+                && (ge[away] - ga[strip]).abs() <= STRIP_TOLERANCE
+        })
     })
 }
 
