@@ -23,10 +23,15 @@ pub const MIN_IN_VIEW: f64 = 0.3;
 const IN_FRONT_M: f64 = 0.002;
 
 impl Solid {
+    /// The model's solid at `pose` (`cam` frame). Only the triangles turned towards the camera
+    /// are kept: a line of sight that crosses the closed surface (outward winding, as
+    /// `MatcherModel` holds it) enters through one of them first, so the others never decide
+    /// [`Solid::hides`], and testing them was half its work.
     pub fn new(model: &MatcherModel, pose: &Isometry3<f64>) -> Solid {
         let (centre, radius) = model.bounding_sphere();
+        let facing = |t: &[Point3<f64>; 3]| (t[1] - t[0]).cross(&(t[2] - t[0])).dot(&t[0].coords) < 0.0;
         Solid {
-            triangles: model.triangles.iter().map(|t| t.map(|p| pose * p)).collect(),
+            triangles: model.triangles.iter().map(|t| t.map(|p| pose * p)).filter(facing).collect(),
             centre: pose * centre,
             radius,
         }
