@@ -166,21 +166,21 @@ fn locate_reports_poses_grasps_and_misses() {
     assert!(!bad.status.success() && String::from_utf8_lossy(&bad.stderr).contains("teapot"));
 }
 
-/// Seed 6 hides most of its L-bracket behind other parts; `locate` reports it missed, with the
-/// fraction of its edges in view and the evidence its true pose finds. Measured: 20% of its
-/// edges visible; at the truth 0.121 of its wireframe in 3D lines along 4 model lines (short of
-/// the matcher's 0.15; it was 0.152 along 5 before PMF compared the grey levels beside the
-/// edges), and only 0.28 of it on image edgels, short of the 0.5 a report needs: the evidence
-/// says why it was missed.
+/// Seed 58 hides most of its L-bracket behind other parts; `locate` reports it missed, with the
+/// fraction of its edges in view and the evidence its true pose finds. Measured: 32% of its
+/// edges visible; at the truth 0.159 of its wireframe in 3D lines along 2 model lines, and only
+/// 0.41 of it on image edgels, short of the 0.5 a report needs: the evidence says why it was
+/// missed. (Seed 6's L-bracket, 20% visible, was this test's case until the stereo polish put
+/// the reading the table look had made of it, 5.1 deg off, onto it.)
 #[test]
 fn locate_says_how_much_of_a_missed_object_was_visible() {
-    let out = marvin(&["locate", "worlds/widgets.toml", "--seed", "6", "--json"]);
+    let out = marvin(&["locate", "worlds/widgets.toml", "--seed", "58", "--json"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let missed = doc["missed"].as_array().unwrap();
     let bracket = missed.iter().find(|m| m["model"] == "l_bracket").unwrap_or_else(|| panic!("{doc}"));
     let figure = |key: &str| bracket[key].as_f64().unwrap_or_else(|| panic!("{key}: {bracket}"));
-    assert!((0.15..0.25).contains(&figure("visible_fraction")), "{bracket}");
+    assert!((0.25..0.4).contains(&figure("visible_fraction")), "{bracket}");
     let bars = vision::matcher::MatchParams::default();
     assert!((0.05..0.3).contains(&figure("support_fraction_at_truth")), "{bracket}");
     assert!(bracket["supported_lines_at_truth"].as_u64().unwrap() >= 2, "{bracket}");
