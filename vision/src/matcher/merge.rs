@@ -64,7 +64,7 @@ pub fn locate_all(
         super::turnover::turn_by_depth(models, (scene, p), ev, RIVAL_MAX_SUPPORT, &mut kept);
         super::turnover::turn_by_image(models, (scene, p), ev, RIVAL_MAX_SUPPORT, &mut kept);
         super::shading::judge_by_shading(models, (scene, p), ev, RIVAL_MAX_SUPPORT, &mut kept);
-        super::polish::polish_in_stereo(models, ev, &mut kept);
+        super::polish::polish_in_stereo(models, (scene, p), ev, &mut kept);
     }
     kept
 }
