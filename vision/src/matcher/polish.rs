@@ -14,8 +14,8 @@
 
 use super::image_fit::{View, refine_in_views};
 use super::model::{Located, MatchParams, MatcherModel, Seg};
-use super::support::support_at;
 use super::occlusion::Solid;
+use super::support::support_at;
 use super::verify::ImageEvidence;
 use nalgebra::{Isometry3, Point3};
 
