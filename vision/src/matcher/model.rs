@@ -258,6 +258,12 @@ impl MatcherModel {
         faces.is_empty() || faces.iter().any(|n| (pose.rotation * n).dot(&-mid.coords) > 0.0)
     }
 
+    /// The grasp positions in the `cam` frame with the model at `pose`: `cam_from_gripper` and
+    /// the jaw opening (metres), as [`Located::grasps`] holds them.
+    pub fn grasps_at(&self, pose: &Isometry3<f64>) -> Vec<(Isometry3<f64>, f64)> {
+        self.grasps.iter().map(|(g, w)| (pose * g, *w)).collect()
+    }
+
     /// Wireframe length a camera at the origin could see with the model at `pose` (lines with a
     /// face towards the camera; other objects may still hide them).
     pub fn visible_length(&self, pose: &Isometry3<f64>) -> f64 {

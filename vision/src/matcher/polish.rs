@@ -66,7 +66,7 @@ pub fn polish_in_stereo(
     for (r, pose) in kept.iter_mut().zip(poses) {
         let (Some(pose), Some(model)) = (pose, model_of(r)) else { continue };
         r.cam_from_model = pose;
-        r.grasps = model.grasps.iter().map(|(g, w)| (pose * g, *w)).collect();
+        r.grasps = model.grasps_at(&pose);
     }
 }
 

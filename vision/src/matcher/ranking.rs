@@ -85,7 +85,7 @@ impl Candidate {
             support_fraction: self.score / model.total_length,
             scene_lines: used,
             image_support,
-            grasps: model.grasps.iter().map(|(g, w)| (self.pose * g, *w)).collect(),
+            grasps: model.grasps_at(&self.pose),
         }
     }
 

@@ -252,7 +252,7 @@ pub(crate) fn locate_refining(
                 support_fraction: score / model.total_length,
                 scene_lines: used,
                 image_support,
-                grasps: model.grasps.iter().map(|(g, w)| (pose * g, *w)).collect(),
+                grasps: model.grasps_at(&pose),
             })
         })
         // The best by 3D support times image support, as the first pass ranks: a part turned

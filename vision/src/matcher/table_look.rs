@@ -97,7 +97,7 @@ pub(crate) fn locate(
             support_fraction: score / model.total_length,
             scene_lines: scene_lines_of(&pairs),
             image_support: in_view,
-            grasps: model.grasps.iter().map(|(g, w)| (pose * g, *w)).collect(),
+            grasps: model.grasps_at(&pose),
         });
     }
     out
