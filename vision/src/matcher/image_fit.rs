@@ -120,11 +120,12 @@ fn image_rows(
         for step in 1..steps {
             let t = step as f64 / steps as f64;
             let x = a + (b - a) * t;
+            let Some(u) = cam.project_cam(&x) else { continue };
+            let Some(d) = nearest_edgel_across(ev, &u, &dir, search) else { continue };
+            // Last, as it may be dear (the polish tests samples against solids).
             if !keep(k, &x) {
                 continue;
             }
-            let Some(u) = cam.project_cam(&x) else { continue };
-            let Some(d) = nearest_edgel_across(ev, &u, &dir, search) else { continue };
             let z = x.z;
             let jacobian =
                 Matrix2x3::new(cam.fx / z, 0.0, -cam.fx * x.x / (z * z), 0.0, cam.fy / z, -cam.fy * x.y / (z * z));

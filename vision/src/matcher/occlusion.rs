@@ -5,13 +5,45 @@
 //! well in front of it.
 
 use super::model::MatcherModel;
-use nalgebra::{Isometry3, Point3};
+use nalgebra::{Isometry3, Point3, Vector3};
 
 /// A model's surface at a pose, in the `cam` frame, with a sphere holding it.
 pub struct Solid {
-    triangles: Vec<[Point3<f64>; 3]>,
+    facets: Vec<Facet>,
     centre: Point3<f64>,
     radius: f64,
+}
+
+/// A triangle turned towards the camera at the origin, held as the camera sees it: a line of
+/// sight along `d` crosses it where `d` lies inside the three planes through the eye and its
+/// edges. Tested this way a sample costs three dot products a triangle, where the general ray
+/// test (`mesh::trimesh::ray_triangle`) spends two cross products and two divisions: the polish
+/// tests every sample of every pass against the solids, and that was a third of its time.
+struct Facet {
+    /// `b x c`, `c x a`, `a x b` for corners `a, b, c`: `d` dotted with each is the weight of
+    /// the opposite corner in the crossing point, up to a common factor.
+    edges: [Vector3<f64>; 3],
+    /// `a . (b x c)`, negative for a triangle turned towards the eye; the crossing lies at
+    /// `triple / (sum of the weights)` along `d`.
+    triple: f64,
+}
+
+impl Facet {
+    fn new([a, b, c]: &[Point3<f64>; 3]) -> Facet {
+        let (a, b, c) = (a.coords, b.coords, c.coords);
+        let edges = [b.cross(&c), c.cross(&a), a.cross(&b)];
+        Facet { triple: a.dot(&edges[0]), edges }
+    }
+
+    /// Where the line of sight along `d` crosses the triangle, as a multiple of `d`; `None`
+    /// if it passes by.
+    fn crossing(&self, d: &Vector3<f64>) -> Option<f64> {
+        let w = self.edges.map(|e| e.dot(d));
+        // Turned towards the eye, the triangle is crossed where all weights share the
+        // triple's (negative) sign.
+        let sum = w[0] + w[1] + w[2];
+        (w.iter().all(|&x| x <= 0.0) && sum < 0.0).then(|| self.triple / sum)
+    }
 }
 
 /// An object judged on the part of its wireframe in view must have at least this share of its
@@ -31,7 +63,13 @@ impl Solid {
         let (centre, radius) = model.bounding_sphere();
         let facing = |t: &[Point3<f64>; 3]| (t[1] - t[0]).cross(&(t[2] - t[0])).dot(&t[0].coords) < 0.0;
         Solid {
-            triangles: model.triangles.iter().map(|t| t.map(|p| pose * p)).filter(facing).collect(),
+            facets: model
+                .triangles
+                .iter()
+                .map(|t| t.map(|p| pose * p))
+                .filter(facing)
+                .map(|t| Facet::new(&t))
+                .collect(),
             centre: pose * centre,
             radius,
         }
@@ -51,7 +89,6 @@ impl Solid {
 
     /// Whether the solid hides point `x` (`cam` frame) from a camera at the origin.
     pub fn hides(&self, x: &Point3<f64>) -> bool {
-        let eye = Point3::origin();
         let (d, dist) = (x.coords, x.coords.norm());
         // The line of sight must pass through the sphere, in front of the point.
         let along = self.centre.coords.dot(&d) / dist;
@@ -59,7 +96,7 @@ impl Solid {
             return false;
         }
         let limit = 1.0 - IN_FRONT_M / dist;
-        self.triangles.iter().filter_map(|t| mesh::trimesh::ray_triangle(&eye, &d, t)).any(|t| t > 0.0 && t < limit)
+        self.facets.iter().filter_map(|f| f.crossing(&d)).any(|t| t > 0.0 && t < limit)
     }
 }
 
@@ -92,6 +129,35 @@ mod tests {
             }
         }
         assert!(facing >= 5 && hidden_far >= 1, "{facing} edges face the camera, {hidden_far} far ones are hidden");
+    }
+
+    /// The facets' crossing test agrees with the general ray test on random triangles turned
+    /// towards the eye and random lines of sight through and past them.
+    #[test]
+    fn a_facet_is_crossed_where_the_general_ray_test_says() {
+        let mut rng = crate::matcher::fixtures::Lcg(7);
+        let mut point = |z: f64| {
+            let [x, y, dz] = [0.2, 0.2, 0.1].map(|w| (rng.next() - 0.5) * w);
+            Point3::new(x, y, z + dz)
+        };
+        let (mut crossed, mut missed) = (0, 0);
+        for _ in 0..2000 {
+            let mut t = [point(0.8), point(0.8), point(0.8)];
+            if (t[1] - t[0]).cross(&(t[2] - t[0])).dot(&t[0].coords) > 0.0 {
+                t.swap(1, 2);
+            }
+            let d = point(1.0).coords;
+            let general = mesh::trimesh::ray_triangle(&Point3::origin(), &d, &t).filter(|&s| s > 0.0);
+            match (Facet::new(&t).crossing(&d), general) {
+                (Some(a), Some(b)) => {
+                    assert!((a - b).abs() < 1e-9 * b.abs().max(1.0), "crossing at {a} against {b}");
+                    crossed += 1;
+                }
+                (None, None) => missed += 1,
+                (a, b) => panic!("facet says {a:?}, the ray test {b:?}"),
+            }
+        }
+        assert!(crossed > 200 && missed > 200, "{crossed} crossed, {missed} missed");
     }
 
     /// A block may hide one straight behind it, not one beside it, nor one in front of it.

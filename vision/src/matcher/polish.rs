@@ -47,15 +47,21 @@ pub fn polish_in_stereo(
         View { ev: &right.ev, cam_from_left: right.right_from_cam },
     ];
     let model_of = |r: &Located| models.iter().find(|m| m.name == r.model);
+    // Each report's solid in each camera's frame, where the report stands (made once: every
+    // pass of every other report tests its samples against them).
+    let solids: Vec<Vec<Option<Solid>>> = views
+        .iter()
+        .map(|v| kept.iter().map(|r| Some(Solid::new(model_of(r)?, &(v.cam_from_left * r.cam_from_model)))).collect())
+        .collect();
     let poses: Vec<Option<Isometry3<f64>>> = kept
         .par_iter()
         .enumerate()
         .map(|(i, r)| {
-            let others: Vec<(&MatcherModel, Isometry3<f64>)> = kept
+            let others: Vec<Vec<&Solid>> = solids
                 .iter()
-                .enumerate()
-                .filter(|(k, _)| *k != i)
-                .filter_map(|(_, o)| Some((model_of(o)?, o.cam_from_model)))
+                .map(|in_view| {
+                    in_view.iter().enumerate().filter(|(k, _)| *k != i).filter_map(|(_, s)| s.as_ref()).collect()
+                })
                 .collect();
             let model = model_of(r)?;
             let pose = polished(model, &r.cam_from_model, &others, &views);
@@ -70,17 +76,17 @@ pub fn polish_in_stereo(
     }
 }
 
-/// `pose` after the passes of [`PASSES_PX`], each fitting only what neither `others` (models
-/// at their poses) nor the model's own bulk at the pass's start hides from each camera.
-fn polished(
-    model: &MatcherModel,
-    pose: &Isometry3<f64>,
-    others: &[(&MatcherModel, Isometry3<f64>)],
-    views: &[View],
-) -> Isometry3<f64> {
+/// `pose` after the passes of [`PASSES_PX`], each fitting only what neither `others` (the
+/// other reports' solids, in each view's camera frame) nor the model's own bulk at the pass's
+/// start hides from each camera.
+fn polished(model: &MatcherModel, pose: &Isometry3<f64>, others: &[Vec<&Solid>], views: &[View]) -> Isometry3<f64> {
     PASSES_PX.iter().fold(*pose, |pose, &search| {
-        let hiders: Vec<Vec<Solid>> = views.iter().map(|v| hiders_in_view(model, &pose, others, v)).collect();
-        let keep = |view: usize, _: usize, x: &Point3<f64>| !hiders[view].iter().any(|s| s.hides(x));
+        let hiders: Vec<(Solid, Vec<&Solid>)> =
+            views.iter().zip(others).map(|(v, others)| hiders_in_view(model, &pose, others, v)).collect();
+        let keep = |view: usize, _: usize, x: &Point3<f64>| {
+            let (own, others) = &hiders[view];
+            !own.hides(x) && !others.iter().any(|s| s.hides(x))
+        };
         refine_in_views(model, &pose, views, search, &keep).unwrap_or(pose)
     })
 }
@@ -91,17 +97,15 @@ fn polished(
 /// surface was is dropped too: leaving out a convex part's own solid (it hides none of its
 /// facing edges where it stands) let two wedges on the tuning seeds slide to 5.1 and 5.8 deg
 /// off (`widgets.toml` seeds 21, 154; `eval locate` 1-500: 10 false reports against 8).
-fn hiders_in_view(
+fn hiders_in_view<'a>(
     model: &MatcherModel,
     pose: &Isometry3<f64>,
-    others: &[(&MatcherModel, Isometry3<f64>)],
+    others: &[&'a Solid],
     v: &View,
-) -> Vec<Solid> {
+) -> (Solid, Vec<&'a Solid>) {
     let own = Solid::new(model, &(v.cam_from_left * pose));
-    let mut out: Vec<Solid> =
-        others.iter().map(|(m, p)| Solid::new(m, &(v.cam_from_left * p))).filter(|s| s.may_hide(&own)).collect();
-    out.push(own);
-    out
+    let others = others.iter().copied().filter(|s| s.may_hide(&own)).collect();
+    (own, others)
 }
 
 #[cfg(test)]
@@ -170,8 +174,8 @@ mod tests {
         assert_eq!(kept[0].grasps.len(), wedge.grasps.len());
     }
 
-    /// What may hide a wedge from a camera: its own bulk always; a block between the camera
-    /// and the wedge, not a block far to one side.
+    /// What may hide a wedge from a camera besides its own bulk: a block between the camera and
+    /// the wedge, not a block far to one side.
     #[test]
     fn a_solid_between_camera_and_report_may_hide_it() {
         let (wedge, block) = (model("wedge"), model("block"));
@@ -183,8 +187,11 @@ mod tests {
         let pose = at(Point3::origin());
         // Halfway to the left camera, and 0.4 m aside.
         let (between, aside) = (at(Point3::new(-0.05, -0.275, 0.225)), at(Point3::new(0.4, 0.0, 0.0)));
-        assert_eq!(hiders_in_view(&wedge, &pose, &[], &view).len(), 1);
-        assert_eq!(hiders_in_view(&wedge, &pose, &[(&block, between)], &view).len(), 2);
-        assert_eq!(hiders_in_view(&wedge, &pose, &[(&block, aside)], &view).len(), 1);
+        let (between, aside) = (Solid::new(&block, &between), Solid::new(&block, &aside));
+        let hiders = |others: &[&Solid]| hiders_in_view(&wedge, &pose, others, &view).1.len();
+        assert_eq!(hiders(&[]), 0);
+        assert_eq!(hiders(&[&between]), 1);
+        assert_eq!(hiders(&[&aside]), 0);
+        assert_eq!(hiders(&[&aside, &between]), 1);
     }
 }
