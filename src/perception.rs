@@ -187,7 +187,7 @@ fn refined_in_stereo(
     fe: &FrontEnd,
     left: &vision::matcher::verify::ImageEvidence,
 ) -> Isometry3<f64> {
-    use vision::matcher::image_fit::{View, refine_in_views};
+    use vision::matcher::image_fit::{FINE_STOP, View, refine_in_views};
     let right = vision::matcher::verify::ImageEvidence::new(&pair.calib.right, &fe.right, Vec::new());
     let views = [
         View { ev: left, cam_from_left: pair.calib.left.world_from_cam.inverse() },
@@ -195,6 +195,6 @@ fn refined_in_stereo(
     ];
     STEREO_PASSES.iter().fold(*cam_from_flag, |pose, &(search, checker_only)| {
         let fitted = |_: usize, k: usize, _: &nalgebra::Point3<f64>| !checker_only || flag.is_marking(k);
-        refine_in_views(flag, &pose, &views, search, &fitted).unwrap_or(pose)
+        refine_in_views(flag, &pose, &views, (search, FINE_STOP), &fitted).unwrap_or(pose)
     })
 }

@@ -27,7 +27,7 @@ use crate::calibrate::Calibration;
 use crate::perception::Pair;
 use crate::protocol::{BinBox, CaptureReply, TruthReply};
 use crate::run::Cycle;
-use nalgebra::{Isometry3, Point3};
+use nalgebra::Isometry3;
 use vision::front_end::FrontEnd;
 use vision::matcher::Located;
 
@@ -44,15 +44,17 @@ pub use with_rerun::Recording;
 #[cfg(not(feature = "rerun"))]
 pub use without_rerun::Recording;
 
-fn points(pose: &Isometry3<f64>, ps: impl IntoIterator<Item = Point3<f64>>) -> Vec<[f32; 3]> {
-    ps.into_iter().map(|p| pose * p).map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect()
-}
-
 #[cfg(feature = "rerun")]
 mod with_rerun {
     use super::*;
     use anyhow::Context;
+    use nalgebra::Point3;
     use rerun::blueprint::{Blueprint, Horizontal, Spatial2DView, Spatial3DView, TextLogView, Vertical};
+
+    /// Points at `pose`, as rerun takes them.
+    fn points(pose: &Isometry3<f64>, ps: impl IntoIterator<Item = Point3<f64>>) -> Vec<[f32; 3]> {
+        ps.into_iter().map(|p| pose * p).map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect()
+    }
 
     /// A recording in progress.
     pub struct Recording {

@@ -222,13 +222,14 @@ pub struct View<'a> {
 /// pulled onto its edgels in both, so that their disparity, to a fraction of a pixel along the
 /// whole wireframe, fixes the depth and tilt that one image and the 3D lines fix poorly. Only
 /// the samples `keep(view, line, x)` lets through are fitted (`x` in that view's camera
-/// frame: what may be seen of the model there). `None` when the images offer too little to
+/// frame: what may be seen of the model there). Steps stop once smaller than `stop` (radians,
+/// metres; [`FINE_STOP`] for the calibration flag). `None` when the images offer too little to
 /// fit to.
 pub fn refine_in_views(
     model: &MatcherModel,
     pose: &Isometry3<f64>,
     views: &[View],
-    search: f64,
+    (search, stop): (f64, (f64, f64)),
     keep: &dyn Fn(usize, usize, &Point3<f64>) -> bool,
 ) -> Option<Isometry3<f64>> {
     let rows_at = |pose: &Isometry3<f64>| {
@@ -238,8 +239,12 @@ pub fn refine_in_views(
         }
         (rows.count >= 12 * views.len()).then_some(rows)
     };
-    gauss_newton(pose, rows_at, (1e-6, 1e-7))
+    gauss_newton(pose, rows_at, stop)
 }
+
+/// Steps of the stereo fit small enough to stop at (radians, metres): the calibration flag's,
+/// whose sightings the hand-eye solve averages to a fraction of a millimetre.
+pub const FINE_STOP: (f64, f64) = (1e-6, 1e-7);
 
 #[cfg(test)]
 mod tests {
@@ -304,7 +309,7 @@ mod tests {
             * left_from_flag
             * Isometry3::rotation(Vector3::new(0.012, -0.01, 0.004));
         for (name, vs) in [("both images", &views[..]), ("the right image", &views[1..])] {
-            let got = refine_in_views(&model, &start, vs, 3.0, &|_, k, _| model.is_marking(k)).unwrap();
+            let got = refine_in_views(&model, &start, vs, (3.0, FINE_STOP), &|_, k, _| model.is_marking(k)).unwrap();
             let e = left_from_flag.inverse() * got;
             let (mm, deg) = (e.translation.vector.norm() * 1e3, e.rotation.angle().to_degrees());
             assert!(mm < 0.01 && deg < 0.01, "{name}: {mm:.4} mm, {deg:.4} deg off");
