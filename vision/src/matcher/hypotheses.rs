@@ -6,7 +6,7 @@
 use super::model::{FocusPair, MatchParams, MatcherModel, Seg, closest_params, line_angle, separation};
 use super::pose_fit::{PointOnLine, rotation_from_two_directions, translation_from_points};
 use super::support::{FreeLines, NearLines, support_score};
-use super::table::nearly_flat;
+use super::table::{hopelessly_sunk, nearly_flat};
 use nalgebra::{Isometry3, Point3, Vector3};
 
 /// A hypothesis: its support and its pose.
@@ -281,6 +281,12 @@ pub(crate) fn for_each_hypothesis(
                     let points = [on(sj.a, mi), on(sj.b, mi), on(sl.a, mk), on(sl.b, mk)];
                     let Some(t) = translation_from_points(&rotation, &points) else { continue };
                     let pose = Isometry3::from_parts(t.into(), rotation);
+                    // Readings that put a seed line on the part's far side or the part deep in
+                    // the table are no readings: not worth counting their support.
+                    let seen = |k: usize| model.may_be_seen(k, &pose);
+                    if !seen(f.focus) || !seen(f.partner) || hopelessly_sunk(p.table.as_ref(), model, &pose) {
+                        continue;
+                    }
                     // Counted in full whatever the floor (the count stops at no floor), so the
                     // flat test waits for a score that needs it.
                     let Some(score) = support_score(model, &pose, scene, free_lines, p, f64::MIN, &mut near) else {

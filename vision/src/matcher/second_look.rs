@@ -22,6 +22,7 @@ use super::image_fit::{SEARCH_PX, refine_in_image};
 use super::model::{Located, MatchParams, MatcherModel, Seg, line_angle};
 use super::occlusion::{MIN_IN_VIEW, Solid};
 use super::support::{model_lines_of, scene_lines_of, support};
+use super::table::hopelessly_sunk;
 use super::verify::{
     Explained, ImageEvidence, ImageLine, MAX_EXPLAINED, image_support_at_least, image_support_unhidden,
 };
@@ -207,9 +208,10 @@ pub(crate) fn locate_refining(
                 if s.len > ml.len + 0.012 {
                     continue;
                 }
-                for pose in
-                    poses(ml, c, s, &u_out, l).into_iter().filter(|pose| inside(pose) && runs_along(pose, c, l, ev))
-                {
+                let fits = |pose: &Isometry3<f64>| {
+                    inside(pose) && !hopelessly_sunk(p.table.as_ref(), model, pose) && runs_along(pose, c, l, ev)
+                };
+                for pose in poses(ml, c, s, &u_out, l).into_iter().filter(fits) {
                     // The pose is only as good as one short 3D line's direction: refined on
                     // the image (and that line) before the strict image check, if it is near
                     // enough to start from.
