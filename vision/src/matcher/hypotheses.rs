@@ -3,7 +3,7 @@
 //! it finds, and only those that can make a search's best are kept. One subordinate matcher per
 //! characteristic view, in parallel; a later instance rescores the same hypotheses.
 
-use super::model::{FocusPair, MatchParams, MatcherModel, Seg, closest_params, line_angle, separation};
+use super::model::{FocusPair, MatchParams, MatcherModel, Seg, closest_params, eye_of, line_angle, separation};
 use super::pose_fit::{PointOnLine, rotation_from_two_directions, translation_from_points};
 use super::support::{FreeLines, NearLines, support_score};
 use super::table::{hopelessly_sunk, nearly_flat};
@@ -283,7 +283,8 @@ pub(crate) fn for_each_hypothesis(
                     let pose = Isometry3::from_parts(t.into(), rotation);
                     // Readings that put a seed line on the part's far side or the part deep in
                     // the table are no readings: not worth counting their support.
-                    let seen = |k: usize| model.may_be_seen(k, &pose);
+                    let eye = eye_of(&pose);
+                    let seen = |k: usize| model.may_be_seen(k, &eye);
                     if !seen(f.focus) || !seen(f.partner) || hopelessly_sunk(p.table.as_ref(), model, &pose) {
                         continue;
                     }

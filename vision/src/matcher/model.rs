@@ -254,19 +254,21 @@ impl MatcherModel {
     /// `pose` (lines of no face always do): only such lines can be seen.
     pub fn faces_camera(&self, k: usize, pose: &Isometry3<f64>) -> bool {
         let (line, faces) = (&self.lines[k], &self.faces[k]);
-        let mid = pose * nalgebra::center(&line.a, &line.b);
-        faces.is_empty() || faces.iter().any(|n| (pose.rotation * n).dot(&-mid.coords) > 0.0)
+        // In the model's frame, where the normals are: the camera carried there once.
+        let towards = eye_of(pose) - nalgebra::center(&line.a, &line.b);
+        faces.is_empty() || faces.iter().any(|n| n.dot(&towards) > 0.0)
     }
 
-    /// Whether line `k` may be what a camera at the origin sees with the model at `pose`, a
-    /// pose some degrees off: one of its faces turned towards the camera, or no further from it
-    /// than [`SEEN_SLACK`] (the cosine of its normal with the line of sight). A hypothesis
-    /// that puts a 3D line on an edge of the model's far side is no reading of it.
-    pub(crate) fn may_be_seen(&self, k: usize, pose: &Isometry3<f64>) -> bool {
+    /// Whether line `k` may be what the camera sees from `eye` (the model's frame, see
+    /// [`eye_of`]), with the model at a pose some degrees off: one of its faces turned towards
+    /// the camera, or no further from it than [`SEEN_SLACK`] (the cosine of its normal with the
+    /// line of sight). A hypothesis that puts a 3D line on an edge of the model's far side is no
+    /// reading of it. (Tested in the model's frame: no normal need be carried into `cam`.)
+    pub(crate) fn may_be_seen(&self, k: usize, eye: &Point3<f64>) -> bool {
         let (line, faces) = (&self.lines[k], &self.faces[k]);
-        let towards = -(pose * nalgebra::center(&line.a, &line.b)).coords;
+        let towards = eye - nalgebra::center(&line.a, &line.b);
         let least = -SEEN_SLACK * towards.norm();
-        faces.is_empty() || faces.iter().any(|n| (pose.rotation * n).dot(&towards) > least)
+        faces.is_empty() || faces.iter().any(|n| n.dot(&towards) > least)
     }
 
     /// The grasp positions in the `cam` frame with the model at `pose`: `cam_from_gripper` and
@@ -280,6 +282,11 @@ impl MatcherModel {
     pub fn visible_length(&self, pose: &Isometry3<f64>) -> f64 {
         (0..self.lines.len()).filter(|&k| self.faces_camera(k, pose)).map(|k| self.lines[k].len).sum()
     }
+}
+
+/// Where the camera (the origin of `cam`) lies in the model's frame with the model at `pose`.
+pub(crate) fn eye_of(pose: &Isometry3<f64>) -> Point3<f64> {
+    Point3::from(-pose.rotation.inverse_transform_vector(&pose.translation.vector))
 }
 
 /// See [`MatcherModel::may_be_seen`]: a face turned away by up to about 6 degrees past edge-on
@@ -592,10 +599,10 @@ mod tests {
                     let mid = pose * nalgebra::center(&m.lines[k].a, &m.lines[k].b);
                     let hidden = solid.hides(&mid);
                     if !hidden {
-                        assert!(m.may_be_seen(k, &pose), "{name}: line {k} in view but ruled out at {pose:?}");
+                        assert!(m.may_be_seen(k, &eye_of(&pose)), "{name}: line {k} in view but ruled out at {pose:?}");
                         seen += 1;
                     }
-                    if !m.may_be_seen(k, &pose) {
+                    if !m.may_be_seen(k, &eye_of(&pose)) {
                         assert!(hidden, "{name}: line {k} ruled out but in view at {pose:?}");
                         unseen += 1;
                     }

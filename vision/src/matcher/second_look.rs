@@ -19,7 +19,7 @@
 //! another's corner shows nothing of its own (an L-bracket on a U-channel, seed 109).
 
 use super::image_fit::{SEARCH_PX, refine_in_image};
-use super::model::{Located, MatchParams, MatcherModel, Seg, line_angle};
+use super::model::{Located, MatchParams, MatcherModel, Seg, eye_of, line_angle};
 use super::occlusion::{MIN_IN_VIEW, Solid};
 use super::support::{model_lines_of, scene_lines_of, support};
 use super::table::hopelessly_sunk;
@@ -53,6 +53,7 @@ const CANDIDATES: usize = 8;
 /// Two model edges leaving one corner: `corner` and the unit directions out of it.
 struct Corner {
     line: usize,
+    other: usize,
     corner: Point3<f64>,
     out: Vector3<f64>,
     other_out: Vector3<f64>,
@@ -71,6 +72,7 @@ fn corners(model: &MatcherModel) -> Vec<Corner> {
                     if (ci - ck).norm() < 1e-6 {
                         out.push(Corner {
                             line: i,
+                            other: k,
                             corner: ci,
                             out: (ei - ci).normalize(),
                             other_out: (ek - ck).normalize(),
@@ -208,8 +210,15 @@ pub(crate) fn locate_refining(
                 if s.len > ml.len + 0.012 {
                     continue;
                 }
+                // Both edges seen (the 3D line's and the image line's), the part out of the
+                // table's depth, before the image is asked.
                 let fits = |pose: &Isometry3<f64>| {
-                    inside(pose) && !hopelessly_sunk(p.table.as_ref(), model, pose) && runs_along(pose, c, l, ev)
+                    let eye = eye_of(pose);
+                    inside(pose)
+                        && model.may_be_seen(c.line, &eye)
+                        && model.may_be_seen(c.other, &eye)
+                        && !hopelessly_sunk(p.table.as_ref(), model, pose)
+                        && runs_along(pose, c, l, ev)
                 };
                 for pose in poses(ml, c, s, &u_out, l).into_iter().filter(fits) {
                     // The pose is only as good as one short 3D line's direction: refined on
