@@ -3,7 +3,7 @@
 //! it finds, and only those that can make a search's best are kept. One subordinate matcher per
 //! characteristic view, in parallel; a later instance rescores the same hypotheses.
 
-use super::model::{FocusPair, MatchParams, MatcherModel, Seg, closest_params, eye_of, line_angle, separation};
+use super::model::{FocusPair, MatchParams, MatcherModel, Seg, closest_params, line_angle, separation};
 use super::pose_fit::{PointOnLine, rotation_from_two_directions, translation_from_points};
 use super::support::{FreeLines, NearLines, support_score};
 use super::table::{hopelessly_sunk, nearly_flat};
@@ -272,6 +272,14 @@ pub(crate) fn for_each_hypothesis(
                     }
                     let vl = sl.dir * sign_l;
                     let Some(rotation) = rotation_from_two_directions([mi.dir, mk.dir], [vj, vl]) else { continue };
+                    // A reading that puts a seed line on the part's far side is no reading:
+                    // each scene line, seen, must lie along an edge the camera may see (the
+                    // line of sight to its middle, carried into the model's frame).
+                    let sight = |s: &Seg| rotation.inverse_transform_vector(&-nalgebra::center(&s.a, &s.b).coords);
+                    if !model.may_be_seen_along(f.focus, &sight(sj)) || !model.may_be_seen_along(f.partner, &sight(sl))
+                    {
+                        continue;
+                    }
                     let on = |x: Point3<f64>, m: &Seg| PointOnLine {
                         scene: x,
                         model_point: m.a,
@@ -281,11 +289,9 @@ pub(crate) fn for_each_hypothesis(
                     let points = [on(sj.a, mi), on(sj.b, mi), on(sl.a, mk), on(sl.b, mk)];
                     let Some(t) = translation_from_points(&rotation, &points) else { continue };
                     let pose = Isometry3::from_parts(t.into(), rotation);
-                    // Readings that put a seed line on the part's far side or the part deep in
-                    // the table are no readings: not worth counting their support.
-                    let eye = eye_of(&pose);
-                    let seen = |k: usize| model.may_be_seen(k, &eye);
-                    if !seen(f.focus) || !seen(f.partner) || hopelessly_sunk(p.table.as_ref(), model, &pose) {
+                    // Nor is one with the part deep in the table: neither is worth counting
+                    // support for.
+                    if hopelessly_sunk(p.table.as_ref(), model, &pose) {
                         continue;
                     }
                     // Counted in full whatever the floor (the count stops at no floor), so the

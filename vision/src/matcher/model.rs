@@ -265,10 +265,15 @@ impl MatcherModel {
     /// line of sight). A hypothesis that puts a 3D line on an edge of the model's far side is no
     /// reading of it. (Tested in the model's frame: no normal need be carried into `cam`.)
     pub(crate) fn may_be_seen(&self, k: usize, eye: &Point3<f64>) -> bool {
-        let (line, faces) = (&self.lines[k], &self.faces[k]);
-        let towards = eye - nalgebra::center(&line.a, &line.b);
+        let line = &self.lines[k];
+        self.may_be_seen_along(k, &(eye - nalgebra::center(&line.a, &line.b)))
+    }
+
+    /// [`Self::may_be_seen`], looking along `-towards` (the model's frame): from a point of
+    /// the line to the camera.
+    pub(crate) fn may_be_seen_along(&self, k: usize, towards: &Vector3<f64>) -> bool {
         let least = -SEEN_SLACK * towards.norm();
-        faces.is_empty() || faces.iter().any(|n| n.dot(&towards) > least)
+        self.faces[k].is_empty() || self.faces[k].iter().any(|n| n.dot(towards) > least)
     }
 
     /// The grasp positions in the `cam` frame with the model at `pose`: `cam_from_gripper` and
