@@ -296,7 +296,7 @@ pub(crate) fn eye_of(pose: &Isometry3<f64>) -> Point3<f64> {
 
 /// See [`MatcherModel::may_be_seen`]: a face turned away by up to about 6 degrees past edge-on
 /// still counts as seen. The first look gives up hypotheses that put either seed line where
-/// it may not be seen: 38% of those left after [`super::table::hopelessly_sunk`] on the bench
+/// it may not be seen: 35% of those left after [`super::table::hopelessly_sunk`] on the bench
 /// scene. On the tuning seeds (`marvin eval locate`, `widgets.toml` 1-500, `dense.toml` and
 /// `side_light.toml` 1-200) 1 / 5 / 0 objects more, 1 / 1 / 0 false reports more (L-brackets
 /// turned over on 0.15-0.16 of their wireframe: the places' floors now fall to others).
