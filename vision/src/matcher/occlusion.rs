@@ -103,6 +103,8 @@ impl Solid {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::matcher::fixtures::{Lcg, model};
+    use crate::matcher::model::eye_of;
     use nalgebra::{Translation3, UnitQuaternion, Vector3};
 
     /// A block 0.8 m in front of the camera hides what lies straight behind it, not what lies in
@@ -169,5 +171,38 @@ mod tests {
         assert!(front.may_hide(&behind));
         assert!(!front.may_hide(&beside));
         assert!(!at(0.0, 1.2).may_hide(&front));
+    }
+
+    /// Over random poses of convex parts before a camera at the origin, a line whose midpoint
+    /// the part's own solid leaves in view (a ray test against its triangles) may be seen, and
+    /// one that may not be seen is hidden; both kinds occur.
+    #[test]
+    fn a_line_on_the_far_side_may_not_be_seen_and_is_hidden() {
+        let mut rng = Lcg(3);
+        let (mut seen, mut unseen) = (0, 0);
+        for name in ["block", "wedge", "hex_prism"] {
+            let m = model(name);
+            for _ in 0..200 {
+                let turn = rng.noise(std::f64::consts::PI);
+                let pose = Isometry3::from_parts(
+                    Translation3::from(Vector3::new(0.0, 0.0, 0.8) + rng.noise(0.1)),
+                    UnitQuaternion::from_scaled_axis(turn),
+                );
+                let solid = Solid::new(&m, &pose);
+                for k in 0..m.lines.len() {
+                    let mid = pose * nalgebra::center(&m.lines[k].a, &m.lines[k].b);
+                    let hidden = solid.hides(&mid);
+                    if !hidden {
+                        assert!(m.may_be_seen(k, &eye_of(&pose)), "{name}: line {k} in view but ruled out at {pose:?}");
+                        seen += 1;
+                    }
+                    if !m.may_be_seen(k, &eye_of(&pose)) {
+                        assert!(hidden, "{name}: line {k} ruled out but in view at {pose:?}");
+                        unseen += 1;
+                    }
+                }
+            }
+        }
+        assert!(seen > 1000 && unseen > 1000, "{seen} lines in view, {unseen} ruled out");
     }
 }
