@@ -191,46 +191,62 @@ pub(crate) fn judge_by_shading(
     let model_of = |name: &str| models.iter().find(|m| m.name == name);
     let solids = solids_of(models, kept);
     let shades_of = |i: usize, model: &MatcherModel, pose: &Isometry3<f64>| reading_shades(i, model, pose, ev, &solids);
+    use rayon::prelude::*;
     let per: Vec<Vec<FaceShade>> = kept
-        .iter()
+        .par_iter()
         .enumerate()
         .map(|(i, l)| model_of(&l.model).map(|m| shades_of(i, m, &l.cam_from_model)).unwrap_or_default())
         .collect();
     let Some(light) = Light::fit(&per.concat()) else { return };
-    let mut drop = vec![false; kept.len()];
-    for i in 0..kept.len() {
-        let Some(model) = model_of(&kept[i].model) else { continue };
-        if kept[i].support_fraction >= max_support {
-            continue;
-        }
-        let Some(misfit) = light.misfit(&per[i]).filter(|m| *m > TURN_MISFIT) else { continue };
-        let samples: usize = per[i].iter().map(|f| f.samples).sum();
-        let report = &kept[i];
-        let turned = half_turns(model)
-            .into_iter()
-            .filter_map(|turn| {
-                let c = turned_candidate(model, scene, p, ev, report.cam_from_model * turn)?;
-                let shades = shades_of(i, model, &c.pose);
-                let fit = light.misfit(&shades)?;
-                let shown: usize = shades.iter().map(|f| f.samples).sum();
-                (fit * TURN_GAIN < misfit
-                    && c.score >= TURN_KEEP_SUPPORT * report.support
-                    && c.image_support >= report.image_support - TURN_IMAGE_LOSS
-                    && shown as f64 >= TURN_KEEP_SAMPLES * samples as f64)
-                    .then_some((fit, c))
-            })
-            .min_by(|a, b| a.0.total_cmp(&b.0));
-        if let Some((_, c)) = turned {
-            kept[i] = c.located(model, c.image_support);
-        } else if misfit > REJECT_MISFIT && report.support_fraction < max_support {
-            drop[i] = true;
-        }
-    }
-    let mut k = 0;
-    kept.retain(|_| {
-        k += 1;
-        !drop[k - 1]
-    });
+    // Each report judged on its own against the one light, in parallel: turned, dropped, or
+    // left as it is.
+    let verdicts: Vec<Verdict> = kept
+        .par_iter()
+        .enumerate()
+        .map(|(i, report)| {
+            let Some(model) = model_of(&report.model) else { return Verdict::Stands };
+            if report.support_fraction >= max_support {
+                return Verdict::Stands;
+            }
+            let Some(misfit) = light.misfit(&per[i]).filter(|m| *m > TURN_MISFIT) else { return Verdict::Stands };
+            let samples: usize = per[i].iter().map(|f| f.samples).sum();
+            let turned = half_turns(model)
+                .into_iter()
+                .filter_map(|turn| {
+                    let c = turned_candidate(model, scene, p, ev, report.cam_from_model * turn)?;
+                    let shades = shades_of(i, model, &c.pose);
+                    let fit = light.misfit(&shades)?;
+                    let shown: usize = shades.iter().map(|f| f.samples).sum();
+                    (fit * TURN_GAIN < misfit
+                        && c.score >= TURN_KEEP_SUPPORT * report.support
+                        && c.image_support >= report.image_support - TURN_IMAGE_LOSS
+                        && shown as f64 >= TURN_KEEP_SAMPLES * samples as f64)
+                        .then_some((fit, c))
+                })
+                .min_by(|a, b| a.0.total_cmp(&b.0));
+            match turned {
+                Some((_, c)) => Verdict::Turned(c.located(model, c.image_support)),
+                None if misfit > REJECT_MISFIT => Verdict::Dropped,
+                None => Verdict::Stands,
+            }
+        })
+        .collect();
+    *kept = std::mem::take(kept)
+        .into_iter()
+        .zip(verdicts)
+        .filter_map(|(report, verdict)| match verdict {
+            Verdict::Stands => Some(report),
+            Verdict::Turned(turned) => Some(turned),
+            Verdict::Dropped => None,
+        })
+        .collect();
+}
+
+/// What the shading check makes of one report.
+enum Verdict {
+    Stands,
+    Turned(super::model::Located),
+    Dropped,
 }
 
 /// A reading from `start`, refitted on the 3D lines along it and then on the image.

@@ -58,17 +58,19 @@ pub(crate) fn turn_by_depth(
     let model_of = |name: &str| models.iter().find(|m| m.name == name);
     let solids: Vec<Option<Solid>> =
         kept.iter().map(|l| model_of(&l.model).map(|m| Solid::new(m, &l.cam_from_model))).collect();
-    for (i, report) in kept.iter_mut().enumerate() {
-        let Some(model) = model_of(&report.model) else { continue };
+    // Each report judged on its own (against the others' solids where they stood), in parallel.
+    use rayon::prelude::*;
+    kept.par_iter_mut().enumerate().for_each(|(i, report)| {
+        let Some(model) = model_of(&report.model) else { return };
         if report.support_fraction >= max_support {
-            continue;
+            return;
         }
         let others: Vec<&Solid> =
             solids.iter().enumerate().filter(|(j, _)| *j != i).filter_map(|(_, s)| s.as_ref()).collect();
         if let Some(turned) = turned_over(model, (scene, p), ev, &others, report) {
             *report = turned;
         }
-    }
+    });
 }
 
 /// `report` turned over, if the edgels' depths bear the turn out far better.
@@ -123,15 +125,17 @@ pub(crate) fn turn_by_image(
     max_support: f64,
     kept: &mut [Located],
 ) {
-    for report in kept.iter_mut() {
-        let Some(model) = models.iter().find(|m| m.name == report.model) else { continue };
+    // Each report judged on its own, in parallel.
+    use rayon::prelude::*;
+    kept.par_iter_mut().for_each(|report| {
+        let Some(model) = models.iter().find(|m| m.name == report.model) else { return };
         if report.support_fraction >= max_support {
-            continue;
+            return;
         }
         let now = image_support(model, &report.cam_from_model, ev);
         // Along edgels for more than this, no turn could gain enough.
         if now + IMAGE_TURN_GAIN > 1.0 {
-            continue;
+            return;
         }
         let better = half_turns(model)
             .into_iter()
@@ -143,7 +147,7 @@ pub(crate) fn turn_by_image(
         if let Some(c) = better {
             *report = c.located(model, c.image_support);
         }
-    }
+    });
 }
 
 /// Whether `turn` (in the model's frame) carries the model's wireframe onto itself.
