@@ -19,7 +19,7 @@ pub enum BenchTarget {
     /// joined, on all cores; `slices` and `join` its two parts. `front_end_whole`: the same
     /// without slicing (`--slices 1`), with its stages `strings`, `rectify`, `pmf`, `geom2d`,
     /// `geom3d`; `sliced_canny` ... `sliced_geom3d` are the sliced run's stages, processor
-    /// time summed over the 8 slices (halos included). `image_evidence`: laying out the left edgels for verification. `match`: the
+    /// time summed over the 8 slices (Canny on each slice's own rasters, the rest with its halo). `image_evidence`: laying out the left edgels for verification. `match`: the
     /// model matcher (every library model but the flag) on the front end's 3D lines, verified
     /// against the left edgels. `vision_cycle`: stereo pair in, located
     /// objects out (the sliced front end, then the matcher).

@@ -111,7 +111,7 @@ impl EdgeMap {
     }
 
     /// Empties the map for a `width` x `height` image, keeping its allocations.
-    fn reset(&mut self, width: usize, height: usize) {
+    pub(crate) fn reset(&mut self, width: usize, height: usize) {
         (self.width, self.height) = (width, height);
         self.edgels.clear();
         self.pixel.clear();

@@ -1,5 +1,6 @@
 //! Spatial parallelism as MARVIN had it: both images cut into horizontal slices (8 of ~64
-//! rasters, adjacent slices sharing 2 rasters), each slice pair taken through Canny, strings,
+//! rasters, adjacent slices sharing 2 rasters), each slice processor running Canny on its own
+//! rasters of both images ([`canny_bands`]), then taking its slice pair through strings,
 //! rectification, PMF, 2D and 3D lines on its own and in parallel, and a Joiner that merges the
 //! per-slice descriptions where 2D lines continue across a seam, as if one processor had done
 //! the whole image.
@@ -7,8 +8,11 @@
 //! Each slice processor also reads a halo of [`HALO`] rasters beyond its slice: PMF weighs a
 //! match by its neighbours up to 20 px away, and an edgel near a seam judged without the
 //! neighbours across it is judged differently from the whole image (measured: with the 2-raster
-//! overlap alone, only 45% of 3D lines came out the same). What a slice reports from its halo
-//! is only context: the Joiner keeps each edgel and match from the slice that owns its row.
+//! overlap alone, only 45% of 3D lines came out the same). The halo's edgels are its
+//! neighbours' (passed on, as transputers pass boundary rows over their links, not found again:
+//! `marvin bench vision`'s `sliced_canny` 9.9 -> 4.7 ms of processor time, `front_end` 15.6 ->
+//! 11.1 ms). What a slice reports from its halo is only context: the Joiner keeps each edgel and
+//! match from the slice that owns its row.
 //!
 //! The right slice covers every right-image raster whose rectified row meets the rectified rows
 //! of the left slice: the verged cameras' warp shifts and tilts rows, so it is taller than the
@@ -139,24 +143,75 @@ fn shift(edgels: &[Edgel], dy: usize) -> Vec<Edgel> {
     edgels.iter().map(|e| Edgel { y: e.y + dy as f32, ..*e }).collect()
 }
 
-/// Stages 1-6 on one slice pair.
+/// One image's Canny edgels from the rows one slice processor answers for (found with
+/// [`CANNY_CONTEXT`] rows of image beyond them), in whole-image pixels and rows.
+pub struct Band {
+    rows: Range<usize>,
+    edgels: Vec<Edgel>,
+    /// Whole-image pixel (row-major index) of each edgel.
+    pixel: Vec<usize>,
+    /// Milliseconds its Canny took.
+    ms: f64,
+}
+
+/// Canny on each of `bands`' rows of `img`, in parallel: each slice processor's own rows,
+/// once. A slice's halo is then made up of its neighbours' bands ([`halo_map`]), as MARVIN's
+/// transputers would pass boundary rows over their links, rather than each slice smoothing its
+/// halo again (the halos and the taller right slices had each image smoothed ~2.9 times over).
+pub fn canny_bands(img: &GreyImage, bands: &[Range<usize>], params: &CannyParams) -> Vec<Band> {
+    bands
+        .par_iter()
+        .map(|rows| {
+            let clock = Instant::now();
+            SLICE_BUFFERS.with(|buffers| {
+                let SliceBuffers { canny, left: map, .. } = &mut *buffers.borrow_mut();
+                let from = canny_rows(canny, img, rows, params, map);
+                Band {
+                    rows: rows.clone(),
+                    edgels: shift(&map.edgels, from),
+                    pixel: map.pixel.iter().map(|&p| p as usize + from * img.width).collect(),
+                    ms: clock.elapsed().as_secs_f64() * 1e3,
+                }
+            })
+        })
+        .collect()
+}
+
+/// The edge map of rows `rows` (numbered from `rows.start`, edgels' rows likewise) made up of
+/// the `bands` that meet them, in row order as Canny gives them.
+fn halo_map(bands: &[Band], rows: &Range<usize>, width: usize, out: &mut EdgeMap) {
+    out.reset(width, rows.len());
+    let dy = rows.start as f32;
+    for band in bands.iter().filter(|b| b.rows.start < rows.end && b.rows.end > rows.start) {
+        for (e, &p) in band.edgels.iter().zip(&band.pixel) {
+            if rows.contains(&(p / width)) {
+                out.push(p - rows.start * width, Edgel { y: e.y - dy, ..*e });
+            }
+        }
+    }
+}
+
+/// Stages 2-6 on one slice pair, with the bands' edgels (stage 1, [`canny_bands`]).
 pub fn run_slice(
-    left: &GreyImage,
-    right: &GreyImage,
+    (left_bands, right_bands): (&[Band], &[Band]),
+    width: usize,
     plan: &SlicePlan,
     rect: &Rectification,
-    params: &CannyParams,
+    own_band: usize,
 ) -> SliceResult {
     let mut watch = Stopwatch::start();
     let (strings, left_edgels, left_pixel, right_edgels, right_pixel) = SLICE_BUFFERS.with(|buffers| {
-        let SliceBuffers { canny, left: lmap, right: rmap } = &mut *buffers.borrow_mut();
-        let lfrom = canny_rows(canny, left, &plan.left, params, lmap);
-        let rfrom = canny_rows(canny, right, &plan.right, params, rmap);
-        watch.lap("canny");
+        let SliceBuffers { left: lmap, right: rmap, .. } = &mut *buffers.borrow_mut();
+        let (lfrom, rfrom) = (plan.left.start, plan.right.start);
+        halo_map(left_bands, &plan.left, width, lmap);
+        halo_map(right_bands, &plan.right, width, rmap);
+        // Its own bands' Canny, then the halos' making up.
+        watch.laps.push(("canny", left_bands[own_band].ms + right_bands[own_band].ms));
+        watch.lap("halo");
         let strings = link_strings(lmap, MIN_STRING);
         watch.lap("strings");
-        let left_pixel = lmap.pixel.iter().map(|&p| p as usize + lfrom * left.width).collect();
-        let right_pixel = rmap.pixel.iter().map(|&p| p as usize + rfrom * right.width).collect();
+        let left_pixel = lmap.pixel.iter().map(|&p| p as usize + lfrom * width).collect();
+        let right_pixel = rmap.pixel.iter().map(|&p| p as usize + rfrom * width).collect();
         (strings, shift(&lmap.edgels, lfrom), left_pixel, shift(&rmap.edgels, rfrom), right_pixel)
     });
     let left_rect = rect.rectify_edgels(Side::Left, &left_edgels);
@@ -177,7 +232,7 @@ pub fn run_slice(
         left: left_edgels,
         left_rect,
         left_pixel,
-        width: left.width,
+        width,
         right: right_edgels,
         right_pixel,
         strings,
@@ -199,7 +254,14 @@ pub fn run_sliced(
     let clock = Instant::now();
     let rect = Rectification::new(calib);
     let plans = plan(left.height, left.width, n, &rect);
-    let slices: Vec<SliceResult> = plans.par_iter().map(|p| run_slice(left, right, p, &rect, params)).collect();
+    let owned: Vec<Range<usize>> = plans.iter().map(|p| p.owned.clone()).collect();
+    let (left_bands, right_bands) =
+        rayon::join(|| canny_bands(left, &owned, params), || canny_bands(right, &owned, params));
+    let slices: Vec<SliceResult> = plans
+        .par_iter()
+        .enumerate()
+        .map(|(k, p)| run_slice((&left_bands, &right_bands), left.width, p, &rect, k))
+        .collect();
     let slices_ms = clock.elapsed().as_secs_f64() * 1e3;
     let clock = Instant::now();
     let mut fe = join(&slices, rect, left.width, left.height);
