@@ -11,8 +11,8 @@
 //! overlap alone, only 45% of 3D lines came out the same). The halo's edgels are its
 //! neighbours' (passed on, as transputers pass boundary rows over their links, not found again:
 //! `marvin bench vision`'s `sliced_canny` 9.9 -> 4.7 ms of processor time, `front_end` 15.6 ->
-//! 11.1 ms). What a slice reports from its halo is only context: the Joiner keeps each edgel and
-//! match from the slice that owns its row.
+//! 11.1 ms, the latter alternated five times). What a slice reports from its halo is only
+//! context: the Joiner keeps each edgel and match from the slice that owns its row.
 //!
 //! The right slice covers every right-image raster whose rectified row meets the rectified rows
 //! of the left slice: the verged cameras' warp shifts and tilts rows, so it is taller than the
