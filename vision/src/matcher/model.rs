@@ -253,10 +253,9 @@ impl MatcherModel {
     /// Whether line `k` has a face turned towards a camera at the origin, with the model at
     /// `pose` (lines of no face always do): only such lines can be seen.
     pub fn faces_camera(&self, k: usize, pose: &Isometry3<f64>) -> bool {
-        let (line, faces) = (&self.lines[k], &self.faces[k]);
+        let line = &self.lines[k];
         // In the model's frame, where the normals are: the camera carried there once.
-        let towards = eye_of(pose) - nalgebra::center(&line.a, &line.b);
-        faces.is_empty() || faces.iter().any(|n| n.dot(&towards) > 0.0)
+        self.faces_towards(k, &(eye_of(pose) - nalgebra::center(&line.a, &line.b)), 0.0)
     }
 
     /// Whether line `k` may be what the camera sees from `eye` (the model's frame, see
@@ -272,7 +271,12 @@ impl MatcherModel {
     /// [`Self::may_be_seen`], looking along `-towards` (the model's frame): from a point of
     /// the line to the camera.
     pub(crate) fn may_be_seen_along(&self, k: usize, towards: &Vector3<f64>) -> bool {
-        let least = -SEEN_SLACK * towards.norm();
+        self.faces_towards(k, towards, -SEEN_SLACK * towards.norm())
+    }
+
+    /// Whether line `k` has no face, or one whose normal dotted with `towards` (the model's
+    /// frame) exceeds `least`.
+    fn faces_towards(&self, k: usize, towards: &Vector3<f64>, least: f64) -> bool {
         self.faces[k].is_empty() || self.faces[k].iter().any(|n| n.dot(towards) > least)
     }
 

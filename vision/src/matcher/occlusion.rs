@@ -188,15 +188,15 @@ mod tests {
                     Translation3::from(Vector3::new(0.0, 0.0, 0.8) + rng.noise(0.1)),
                     UnitQuaternion::from_scaled_axis(turn),
                 );
-                let solid = Solid::new(&m, &pose);
+                let (solid, eye) = (Solid::new(&m, &pose), eye_of(&pose));
                 for k in 0..m.lines.len() {
                     let mid = pose * nalgebra::center(&m.lines[k].a, &m.lines[k].b);
                     let hidden = solid.hides(&mid);
                     if !hidden {
-                        assert!(m.may_be_seen(k, &eye_of(&pose)), "{name}: line {k} in view but ruled out at {pose:?}");
+                        assert!(m.may_be_seen(k, &eye), "{name}: line {k} in view but ruled out at {pose:?}");
                         seen += 1;
                     }
-                    if !m.may_be_seen(k, &eye_of(&pose)) {
+                    if !m.may_be_seen(k, &eye) {
                         assert!(hidden, "{name}: line {k} ruled out but in view at {pose:?}");
                         unseen += 1;
                     }
