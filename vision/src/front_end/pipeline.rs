@@ -128,7 +128,8 @@ pub fn run_with(left: &GreyImage, right: &GreyImage, geometry: &Geometry, canny_
         lines3d
     });
     watch.lap("geom3d");
-    // What the front end vouches for: the matches that lie on a 3D line and agree with it.
+    // What the front end vouches for: the matches that lie on a 3D line and agree with it
+    // (within `lines3d::VOUCH_PX` of its fit).
     // Matches off every line (near corners, on short or flat strings, isolated) are dropped.
     if rect.is_some() {
         let mut on_line = vec![false; left_rectified.len()];
