@@ -63,6 +63,20 @@ pub struct PmfParams {
     /// / 76.5%; 14 px 96.0 / 95.8% and 76.9 / 76.3% (a first form of the test: see
     /// [`STRIP_TOLERANCE`] for what the final one keeps).
     pub one_view_strip_px: f32,
+    /// The strip's widest as a share of the candidate's disparity, where that is wider than
+    /// `one_view_strip_px`. A face seen by one camera only is seen by the other about
+    /// `baseline / depth` from edge-on, so its width in the image is its extent in depth times
+    /// `f baseline / depth^2`: its disparity times `extent / depth`. The parts' faces reach
+    /// about 5% of their distance (45 mm at 0.9 m); `side_light.toml`'s rig, nearer and
+    /// steeper, shows them wider (a block's lit end 19 px, seed 52) than `widgets.toml`'s. Against 10 px
+    /// alone, on `marvin eval vision --scenes 50` seeds 1 / 101 (within 0.5 px, coverage):
+    /// `side_light.toml` 93.40 / 93.02% -> 93.85 / 93.60%, 68.0 / 66.6% -> 68.0 / 66.8%,
+    /// `widgets.toml` 96.48 / 96.25% -> 96.47 / 96.29%, 76.8 / 76.3% -> 76.8 / 76.3%,
+    /// `dense.toml` (101) 95.61 -> 95.66%; `eval locate` on the tuning seeds (`widgets.toml`
+    /// 1-500, `dense.toml` and `side_light.toml` 1-200) 98.04 / 91.42 / 93.60% with 9 / 18 / 4
+    /// false reports -> 98.04 / 91.35 / 93.88% with 10 / 18 / 4. (A fixed 14 px gave 98.01 /
+    /// 91.35 / 93.96% with 11 / 18 / 5.)
+    pub one_view_strip_per_disparity: f32,
     pub support_radius: f32,
     pub disparity_gradient_limit: f32,
     /// Largest disparity step between consecutive matched edgels of a string (figural continuity).
@@ -81,6 +95,7 @@ impl Default for PmfParams {
             min_angle_to_raster: 0.35,
             side_tolerance: 3.0,
             one_view_strip_px: 10.0,
+            one_view_strip_per_disparity: 0.05,
             support_radius: 20.0,
             disparity_gradient_limit: 0.5,
             continuity_step: 1.0,
@@ -355,8 +370,9 @@ impl Pair {
             (false, true) => (Towards::SmallerX, Strip::Excuses, Strip::Refuses),
             _ => return None,
         };
-        let in_left = strip_beside(&self.left, l, (gl, gr), towards, p);
-        let in_right = strip_beside(&self.right, r, (gr, gl), towards, p);
+        let widest = p.one_view_strip_px.max(p.one_view_strip_per_disparity * (l.x - r.x));
+        let in_left = strip_beside(&self.left, l, (gl, gr), (towards, widest), p);
+        let in_right = strip_beside(&self.right, r, (gr, gl), (towards, widest), p);
         match (in_left, in_right) {
             (true, _) if left_strip == Strip::Refuses => Some(Strip::Refuses),
             (_, true) if right_strip == Strip::Refuses => Some(Strip::Refuses),
@@ -370,16 +386,22 @@ impl Pair {
 /// Whether edgel `a` of `image` (grey levels beside it `ga`, along the raster), alike its
 /// would-be partner in the other image (`gb`) on the side away from `towards` and not on that
 /// side, has a strip there that the other image does not show: an edgel of `a`'s raster up to
-/// `one_view_strip_px` that way with `gb`'s grey beyond it and `a`'s before it (the strip's,
+/// `widest` px that way with `gb`'s grey beyond it and `a`'s before it (the strip's,
 /// within [`STRIP_TOLERANCE`]: the sides of a narrow strip are sampled through the blur).
-fn strip_beside(image: &Beside, a: &Edgel, (ga, gb): ([f32; 2], [f32; 2]), towards: Towards, p: &PmfParams) -> bool {
+fn strip_beside(
+    image: &Beside,
+    a: &Edgel,
+    (ga, gb): ([f32; 2], [f32; 2]),
+    (towards, widest): (Towards, f32),
+    p: &PmfParams,
+) -> bool {
     let (strip, away) = match towards {
         Towards::LargerX => (1, 0),
         Towards::SmallerX => (0, 1),
     };
     let (lo, hi) = match towards {
-        Towards::LargerX => (a.x, a.x + p.one_view_strip_px),
-        Towards::SmallerX => (a.x - p.one_view_strip_px, a.x),
+        Towards::LargerX => (a.x, a.x + widest),
+        Towards::SmallerX => (a.x - widest, a.x),
     };
     let row = a.y.round() as i32;
     (row - 1..=row + 1).any(|r| {
@@ -913,7 +935,7 @@ mod tests {
     #[test]
     fn a_strip_one_camera_sees_leaves_the_match_to_the_nearer_surfaces_edge() {
         let p = PmfParams { disparity_min: 20.0, disparity_max: 80.0, ..PmfParams::default() };
-        let no_strip_test = PmfParams { one_view_strip_px: 0.0, ..p };
+        let no_strip_test = PmfParams { one_view_strip_px: 0.0, one_view_strip_per_disparity: 0.0, ..p };
         let strings = strings_of(&[20, 20]);
         let (dark_edge, bright_edge, whole) = ([40.0, 90.0], [90.0, 140.0], [40.0, 140.0]);
 
@@ -932,5 +954,24 @@ mod tests {
         assert!(matches.iter().all(|m| m.right < 20 && (m.disparity - 40.0).abs() < 1e-3));
         let fooled = pmf(&left, &right, &strings_of(&[20]), &no_strip_test);
         assert!(!fooled.is_empty() && fooled.iter().all(|m| m.right >= 20 && (m.disparity - 35.0).abs() < 1e-3));
+    }
+
+    /// Nearer the cameras a face seen by one camera only is wider: a 13 px strip at 300 px of
+    /// disparity (wider than `one_view_strip_px`, within `one_view_strip_per_disparity` of it)
+    /// still leaves the match to the nearer surface's edge; with the width fixed at 10 px, the
+    /// strip's far edge takes it, 13 px of disparity short.
+    #[test]
+    fn a_wider_strip_nearer_the_cameras_is_still_seen_for_one() {
+        let p = PmfParams { disparity_min: 200.0, disparity_max: 400.0, ..PmfParams::default() };
+        let fixed_width = PmfParams { one_view_strip_per_disparity: 0.0, ..p };
+        let strings = strings_of(&[20, 20]);
+        let (dark_edge, bright_edge, whole) = ([40.0, 90.0], [90.0, 140.0], [40.0, 140.0]);
+        let left = [step(400.0, dark_edge, 30.0), step(413.0, bright_edge, 15.0)].concat();
+        let right = step(113.0, whole, 50.0);
+        let matches = pmf(&left, &right, &strings, &p);
+        assert_eq!(matches.len(), 20);
+        assert!(matches.iter().all(|m| m.left >= 20 && (m.disparity - 300.0).abs() < 1e-3));
+        let fooled = pmf(&left, &right, &strings, &fixed_width);
+        assert!(!fooled.is_empty() && fooled.iter().all(|m| m.left < 20 && (m.disparity - 287.0).abs() < 1e-3));
     }
 }
