@@ -180,6 +180,29 @@ impl Light {
         x.iter().all(|v| v.is_finite()).then(|| Light { ambient: x[0], towards_light: Vector3::new(x[1], x[2], x[3]) })
     }
 
+    /// What `faces` show over what the light predicts for them, as a share: the median over
+    /// their samples, lit faces and faces in shadow alike (the ambient term scales with the
+    /// albedo as the light does). A reading of the right model shows about 1 whichever of its
+    /// faces are misread; one whose faces are another model's shows that model's albedo over
+    /// its own on all of them. `None` with no face read.
+    pub fn albedo_factor(&self, faces: &[FaceShade]) -> Option<f64> {
+        let mut ratios: Vec<(f64, usize)> = faces
+            .iter()
+            .filter(|f| self.predict(&f.normal) > 1.0)
+            .map(|f| (f.grey_per_albedo / self.predict(&f.normal), f.samples))
+            .collect();
+        ratios.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let n: usize = ratios.iter().map(|r| r.1).sum();
+        let mut counted = 0;
+        ratios
+            .into_iter()
+            .find(|&(_, samples)| {
+                counted += samples;
+                2 * counted >= n && n > 0
+            })
+            .map(|(ratio, _)| ratio)
+    }
+
     /// How far (grey levels per unit albedo) `faces` lie from the light's prediction: the median
     /// over their samples (each face's error counted once per sample), so that most of what a
     /// reading shows must disagree with the light. (The mean let one sliver of a face misread
@@ -233,6 +256,22 @@ mod tests {
         let mostly_wrong = [face(-1.0, 170.0, 58), face(0.0, 150.0, 8), face(-0.6, 148.0, 45)];
         assert!(light.misfit(&mostly_wrong).unwrap() >= 40.0 - 1e-9);
         assert_eq!(light.misfit(&[]), None);
+    }
+
+    /// One lit face of three read 13% dark (a narrow face read through the blur) leaves the
+    /// albedo factor at 1; all of them 13% dark (another model's albedo) set it there.
+    #[test]
+    fn the_albedo_factor_is_what_most_faces_show() {
+        let light = Light { ambient: 60.0, towards_light: Vector3::new(0.0, 0.0, -150.0) };
+        let face = |z: f64, factor: f64, samples: usize| {
+            let normal = Vector3::new((1.0 - z * z).sqrt(), 0.0, z);
+            FaceShade { normal, grey_per_albedo: factor * light.predict(&normal), samples }
+        };
+        let one_dark = [face(-1.0, 0.867, 54), face(0.0, 0.99, 46), face(0.3, 1.006, 53)];
+        assert!((light.albedo_factor(&one_dark).unwrap() - 0.99).abs() < 1e-9);
+        let all_dark = [face(-1.0, 0.867, 54), face(0.0, 0.87, 46), face(0.3, 0.866, 53)];
+        assert!((light.albedo_factor(&all_dark).unwrap() - 0.867).abs() < 1e-9);
+        assert_eq!(light.albedo_factor(&[]), None);
     }
 
     #[test]
