@@ -186,21 +186,13 @@ impl Light {
     /// faces are misread; one whose faces are another model's shows that model's albedo over
     /// its own on all of them. `None` with no face read.
     pub fn albedo_factor(&self, faces: &[FaceShade]) -> Option<f64> {
-        let mut ratios: Vec<(f64, usize)> = faces
-            .iter()
-            .filter(|f| self.predict(&f.normal) > 1.0)
-            .map(|f| (f.grey_per_albedo / self.predict(&f.normal), f.samples))
-            .collect();
-        ratios.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let n: usize = ratios.iter().map(|r| r.1).sum();
-        let mut counted = 0;
-        ratios
-            .into_iter()
-            .find(|&(_, samples)| {
-                counted += samples;
-                2 * counted >= n && n > 0
-            })
-            .map(|(ratio, _)| ratio)
+        sample_median(
+            faces
+                .iter()
+                .filter(|f| self.predict(&f.normal) > 1.0)
+                .map(|f| (f.grey_per_albedo / self.predict(&f.normal), f.samples))
+                .collect(),
+        )
     }
 
     /// How far (grey levels per unit albedo) `faces` lie from the light's prediction: the median
@@ -221,19 +213,23 @@ impl Light {
         let lit = |f: &&FaceShade| self.towards_light.dot(&f.normal) > 0.0;
         let told: Vec<&FaceShade> =
             if faces.iter().any(|f| lit(&f)) { faces.iter().filter(lit).collect() } else { faces.iter().collect() };
-        let mut errors: Vec<(f64, usize)> =
-            told.iter().map(|f| ((f.grey_per_albedo - self.predict(&f.normal)).abs(), f.samples)).collect();
-        errors.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let n: usize = errors.iter().map(|e| e.1).sum();
-        let mut counted = 0;
-        errors
-            .into_iter()
-            .find(|&(_, samples)| {
-                counted += samples;
-                2 * counted >= n && n > 0
-            })
-            .map(|(error, _)| error)
+        sample_median(told.iter().map(|f| ((f.grey_per_albedo - self.predict(&f.normal)).abs(), f.samples)).collect())
     }
+}
+
+/// The median of (value, samples) pairs, each value counted once per sample; `None` with no
+/// samples.
+fn sample_median(mut values: Vec<(f64, usize)>) -> Option<f64> {
+    values.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let n: usize = values.iter().map(|v| v.1).sum();
+    let mut counted = 0;
+    values
+        .into_iter()
+        .find(|&(_, samples)| {
+            counted += samples;
+            2 * counted >= n && n > 0
+        })
+        .map(|(value, _)| value)
 }
 
 #[cfg(test)]
