@@ -939,16 +939,8 @@ mod tests {
     fn a_strip_one_camera_sees_leaves_the_match_to_the_nearer_surfaces_edge() {
         let p = PmfParams { disparity_min: 20.0, disparity_max: 80.0, ..PmfParams::default() };
         let no_strip_test = PmfParams { one_view_strip_px: 0.0, one_view_strip_per_disparity: 0.0, ..p };
-        let strings = strings_of(&[20, 20]);
-        let (dark_edge, bright_edge, whole) = ([40.0, 90.0], [90.0, 140.0], [40.0, 140.0]);
-
-        let left = [step(100.0, dark_edge, 30.0), step(105.0, bright_edge, 15.0)].concat();
-        let right = step(65.0, whole, 50.0);
-        let matches = pmf(&left, &right, &strings, &p);
-        assert_eq!(matches.len(), 20);
-        assert!(matches.iter().all(|m| m.left >= 20 && (m.disparity - 40.0).abs() < 1e-3));
-        let fooled = pmf(&left, &right, &strings, &no_strip_test);
-        assert!(!fooled.is_empty() && fooled.iter().all(|m| m.left < 20 && (m.disparity - 35.0).abs() < 1e-3));
+        let (dark_edge, bright_edge, whole) = STRIP_GREYS;
+        strip_seen_by_the_left_camera((100.0, 5.0, 40.0), &p, &no_strip_test);
 
         let left = step(100.0, whole, 50.0);
         let right = [step(60.0, dark_edge, 15.0), step(65.0, bright_edge, 30.0)].concat();
@@ -967,14 +959,29 @@ mod tests {
     fn a_wider_strip_nearer_the_cameras_is_still_seen_for_one() {
         let p = PmfParams { disparity_min: 200.0, disparity_max: 400.0, ..PmfParams::default() };
         let fixed_width = PmfParams { one_view_strip_per_disparity: 0.0, ..p };
+        strip_seen_by_the_left_camera((400.0, 13.0, 300.0), &p, &fixed_width);
+    }
+
+    /// The greys of the strip tests: the strip's dark edge (40 | 90), its bright edge (90 | 140)
+    /// and the single edge the other camera sees (40 | 140).
+    const STRIP_GREYS: ([f32; 2], [f32; 2], [f32; 2]) = ([40.0, 90.0], [90.0, 140.0], [40.0, 140.0]);
+
+    /// A strip `width` px wide seen by the left camera only, its dark edge at `x`, the right
+    /// image's single edge at `disparity` from the strip's bright edge: with `p` every match
+    /// goes to the bright edge at `disparity`; with `fooled_by` the dark edge takes matches,
+    /// `width` short.
+    fn strip_seen_by_the_left_camera((x, width, disparity): (f32, f32, f32), p: &PmfParams, fooled_by: &PmfParams) {
+        let (dark_edge, bright_edge, whole) = STRIP_GREYS;
         let strings = strings_of(&[20, 20]);
-        let (dark_edge, bright_edge, whole) = ([40.0, 90.0], [90.0, 140.0], [40.0, 140.0]);
-        let left = [step(400.0, dark_edge, 30.0), step(413.0, bright_edge, 15.0)].concat();
-        let right = step(113.0, whole, 50.0);
-        let matches = pmf(&left, &right, &strings, &p);
+        let left = [step(x, dark_edge, 30.0), step(x + width, bright_edge, 15.0)].concat();
+        let right = step(x + width - disparity, whole, 50.0);
+        let matches = pmf(&left, &right, &strings, p);
         assert_eq!(matches.len(), 20);
-        assert!(matches.iter().all(|m| m.left >= 20 && (m.disparity - 300.0).abs() < 1e-3));
-        let fooled = pmf(&left, &right, &strings, &fixed_width);
-        assert!(!fooled.is_empty() && fooled.iter().all(|m| m.left < 20 && (m.disparity - 287.0).abs() < 1e-3));
+        assert!(matches.iter().all(|m| m.left >= 20 && (m.disparity - disparity).abs() < 1e-3));
+        let fooled = pmf(&left, &right, &strings, fooled_by);
+        assert!(
+            !fooled.is_empty()
+                && fooled.iter().all(|m| m.left < 20 && (m.disparity - (disparity - width)).abs() < 1e-3)
+        );
     }
 }
