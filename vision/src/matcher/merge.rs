@@ -61,9 +61,10 @@ pub fn locate_all(
         }
     }
     if let Some(ev) = image {
-        super::turnover::turn_by_depth(models, (scene, p), ev, RIVAL_MAX_SUPPORT, &mut kept);
-        super::turnover::turn_by_image(models, (scene, p), ev, RIVAL_MAX_SUPPORT, &mut kept);
-        super::shading::judge_by_shading(models, (scene, p), ev, RIVAL_MAX_SUPPORT, &mut kept);
+        let turns = super::shading::TurnedCandidates::default();
+        super::turnover::turn_by_depth(models, (scene, p), ev, (RIVAL_MAX_SUPPORT, &turns), &mut kept);
+        super::turnover::turn_by_image(models, (scene, p), ev, (RIVAL_MAX_SUPPORT, &turns), &mut kept);
+        super::shading::judge_by_shading(models, (scene, p), ev, (RIVAL_MAX_SUPPORT, &turns), &mut kept);
         super::polish::polish_in_stereo(models, (scene, p), ev, &mut kept);
     }
     kept

@@ -67,6 +67,7 @@ pub(crate) fn in_image(
 }
 
 /// A refined hypothesis with its evidence.
+#[derive(Clone)]
 pub(crate) struct Candidate {
     pub(crate) pose: Isometry3<f64>,
     pub(crate) score: f64,

@@ -194,7 +194,7 @@ pub(crate) fn judge_by_shading(
     models: &[MatcherModel],
     (scene, p): (&[super::model::Seg], &super::model::MatchParams),
     ev: &ImageEvidence,
-    max_support: f64,
+    (max_support, turns): (f64, &TurnedCandidates),
     kept: &mut Vec<super::model::Located>,
 ) {
     let model_of = |name: &str| models.iter().find(|m| m.name == name);
@@ -223,9 +223,9 @@ pub(crate) fn judge_by_shading(
             let Some(misfit) = light.misfit(&per[i]).filter(|m| *m > TURN_MISFIT) else { return Verdict::Stands };
             let samples: usize = per[i].iter().map(|f| f.samples).sum();
             let turned = half_turns(model)
-                .into_iter()
+                .into_par_iter()
                 .filter_map(|turn| {
-                    let c = turned_candidate(model, scene, p, ev, report.cam_from_model * turn)?;
+                    let c = turns.from(model, (scene, p), ev, report.cam_from_model * turn)?;
                     let shades = shades_of(i, model, &c.pose);
                     let fit = light.misfit(&shades)?;
                     let shown: usize = shades.iter().map(|f| f.samples).sum();
@@ -261,8 +261,42 @@ enum Verdict {
     Dropped,
 }
 
+/// The readings [`turned_candidate`] has refitted so far, by model and start pose.
+///
+/// Why: the turn by the edgels' depths, the turn by the image and the shading check each try
+/// the half turns of the same reports, and refitting a turn is most of what each costs (on
+/// `marvin bench vision`'s scene an L-bracket's three turns were refitted twice over).
+#[derive(Default)]
+pub(crate) struct TurnedCandidates {
+    refitted: std::sync::Mutex<std::collections::HashMap<StartKey, Option<super::ranking::Candidate>>>,
+}
+
+/// A model's name and a start pose's translation and rotation, bit for bit.
+type StartKey = (String, [u64; 7]);
+
+impl TurnedCandidates {
+    /// [`turned_candidate`] from `start`, refitted once.
+    pub(crate) fn from(
+        &self,
+        model: &MatcherModel,
+        (scene, p): (&[super::model::Seg], &super::model::MatchParams),
+        ev: &ImageEvidence,
+        start: Isometry3<f64>,
+    ) -> Option<super::ranking::Candidate> {
+        let (t, r) = (start.translation.vector, start.rotation.coords);
+        let key = (model.name.clone(), [t.x, t.y, t.z, r.x, r.y, r.z, r.w].map(f64::to_bits));
+        let known = self.refitted.lock().unwrap_or_else(|e| e.into_inner()).get(&key).cloned();
+        if let Some(c) = known {
+            return c;
+        }
+        let c = turned_candidate(model, scene, p, ev, start);
+        self.refitted.lock().unwrap_or_else(|e| e.into_inner()).insert(key, c.clone());
+        c
+    }
+}
+
 /// A reading from `start`, refitted on the 3D lines along it and then on the image.
-pub(crate) fn turned_candidate(
+fn turned_candidate(
     model: &MatcherModel,
     scene: &[super::model::Seg],
     p: &super::model::MatchParams,
@@ -410,7 +444,7 @@ mod tests {
         };
         let judged = |last: crate::matcher::model::Located| {
             let mut kept: Vec<_> = objects[..3].iter().map(|(m, pose)| report(m, *pose)).chain([last]).collect();
-            judge_by_shading(&models, (&[], &p), &ev, 0.3, &mut kept);
+            judge_by_shading(&models, (&[], &p), &ev, (0.3, &TurnedCandidates::default()), &mut kept);
             kept.into_iter().map(|r| r.model).collect::<Vec<_>>()
         };
         assert_eq!(judged(report(&objects[3].0, channel_pose)), ["block", "wedge", "hex_prism", "u_channel"]);

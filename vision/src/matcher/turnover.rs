@@ -21,7 +21,7 @@
 
 use super::model::{Located, MatchParams, MatcherModel, Seg};
 use super::occlusion::Solid;
-use super::shading::{half_turns, turned_candidate};
+use super::shading::{TurnedCandidates, half_turns};
 use super::verify::{ImageEvidence, depth_agreement, image_support, image_support_unhidden};
 use nalgebra::Isometry3;
 
@@ -52,7 +52,7 @@ pub(crate) fn turn_by_depth(
     models: &[MatcherModel],
     (scene, p): (&[Seg], &MatchParams),
     ev: &ImageEvidence,
-    max_support: f64,
+    (max_support, turns): (f64, &TurnedCandidates),
     kept: &mut [Located],
 ) {
     let model_of = |name: &str| models.iter().find(|m| m.name == name);
@@ -67,7 +67,7 @@ pub(crate) fn turn_by_depth(
         }
         let others: Vec<&Solid> =
             solids.iter().enumerate().filter(|(j, _)| *j != i).filter_map(|(_, s)| s.as_ref()).collect();
-        if let Some(turned) = turned_over(model, (scene, p), ev, &others, report) {
+        if let Some(turned) = turned_over(model, (scene, p), (ev, turns), &others, report) {
             *report = turned;
         }
     });
@@ -77,7 +77,7 @@ pub(crate) fn turn_by_depth(
 fn turned_over(
     model: &MatcherModel,
     (scene, p): (&[Seg], &MatchParams),
-    ev: &ImageEvidence,
+    (ev, turns): (&ImageEvidence, &TurnedCandidates),
     others: &[&Solid],
     report: &Located,
 ) -> Option<Located> {
@@ -85,10 +85,11 @@ fn turned_over(
     if now.contradicted < MIN_CONTRADICTED_PX {
         return None;
     }
+    use rayon::prelude::*;
     let (_, c) = half_turns(model)
-        .into_iter()
+        .into_par_iter()
         .filter_map(|turn| {
-            let c = turned_candidate(model, scene, p, ev, report.cam_from_model * turn)?;
+            let c = turns.from(model, (scene, p), ev, report.cam_from_model * turn)?;
             let then = judge(model, &c.pose, ev, others)?;
             (c.score >= KEEP_SUPPORT * report.support
                 && then.agreeing >= KEEP_AGREEING * now.agreeing
@@ -122,7 +123,7 @@ pub(crate) fn turn_by_image(
     models: &[MatcherModel],
     (scene, p): (&[Seg], &MatchParams),
     ev: &ImageEvidence,
-    max_support: f64,
+    (max_support, turns): (f64, &TurnedCandidates),
     kept: &mut [Located],
 ) {
     // Each report judged on its own, in parallel.
@@ -138,10 +139,10 @@ pub(crate) fn turn_by_image(
             return;
         }
         let better = half_turns(model)
-            .into_iter()
+            .into_par_iter()
             // A symmetry of the part reads it as the report does.
             .filter(|turn| !is_symmetry(model, turn))
-            .filter_map(|turn| turned_candidate(model, scene, p, ev, report.cam_from_model * turn))
+            .filter_map(|turn| turns.from(model, (scene, p), ev, report.cam_from_model * turn))
             .filter(|c| c.score >= IMAGE_TURN_KEEP * report.support && c.image_support >= now + IMAGE_TURN_GAIN)
             .max_by(|a, b| a.image_support.total_cmp(&b.image_support));
         if let Some(c) = better {
@@ -222,7 +223,7 @@ mod tests {
             grasps: Vec::new(),
         };
         let mut kept = vec![report];
-        turn_by_depth(std::slice::from_ref(&wedge), (&scene, &p), &ev, 0.3, &mut kept);
+        turn_by_depth(std::slice::from_ref(&wedge), (&scene, &p), &ev, (0.3, &TurnedCandidates::default()), &mut kept);
         let got = kept[0].cam_from_model;
         assert!((got.translation.vector - truth.translation.vector).norm() < 1e-3, "turned back to where it lies");
         assert!(got.rotation.angle_to(&truth.rotation) < 0.02, "and as it lies");
@@ -245,7 +246,13 @@ mod tests {
             grasps: Vec::new(),
         };
         let mut kept = vec![report];
-        turn_by_depth(std::slice::from_ref(&wedge), (&scene, &MatchParams::default()), &ev, 0.3, &mut kept);
+        turn_by_depth(
+            std::slice::from_ref(&wedge),
+            (&scene, &MatchParams::default()),
+            &ev,
+            (0.3, &TurnedCandidates::default()),
+            &mut kept,
+        );
         assert_eq!(kept[0].cam_from_model, truth);
     }
 
@@ -296,7 +303,7 @@ mod tests {
         // Every report judged, whatever its 3D evidence.
         let all = 1.0;
         let mut kept = vec![turned];
-        turn_by_image(std::slice::from_ref(&wedge), (&scene, &p), &ev, all, &mut kept);
+        turn_by_image(std::slice::from_ref(&wedge), (&scene, &p), &ev, (all, &TurnedCandidates::default()), &mut kept);
         // As it lies: its wireframe where the wedge's is (a symmetric pose will do).
         let got = kept[0].cam_from_model;
         let ends = |pose: &Isometry3<f64>| -> Vec<Point3<f64>> {
@@ -309,7 +316,7 @@ mod tests {
             .fold(0.0, f64::max);
         assert!(off < 1e-3, "turned back to where it lies, as it lies: a corner {off} m off");
         let mut kept = vec![report_at(&wedge, truth, &scene, &ev)];
-        turn_by_image(std::slice::from_ref(&wedge), (&scene, &p), &ev, all, &mut kept);
+        turn_by_image(std::slice::from_ref(&wedge), (&scene, &p), &ev, (all, &TurnedCandidates::default()), &mut kept);
         assert_eq!(kept[0].cam_from_model, truth, "read as it lies, it stays");
     }
 
