@@ -61,10 +61,20 @@ pub(crate) fn locate_from(
         let ranked = best_of(&seen, TIERS * p.hypotheses);
         let (mut best, mut sunk) = (None, None);
         for tier in ranked.chunks(p.hypotheses.max(1)) {
-            let mut passed: Vec<Candidate> = tier
-                .iter()
-                .filter_map(|&start| verified(model, scene, &free, start, p, image, &mut doubtful))
+            // A tier's hypotheses verified in parallel (each on its own), in their order.
+            use rayon::prelude::*;
+            let verdicts: Vec<(Option<Candidate>, Vec<Candidate>)> = tier
+                .par_iter()
+                .map(|&start| {
+                    let mut doubts = Vec::new();
+                    (verified(model, scene, &free, start, p, image, &mut doubts), doubts)
+                })
                 .collect();
+            let mut passed = Vec::new();
+            for (c, doubts) in verdicts {
+                passed.extend(c);
+                doubtful.extend(doubts);
+            }
             // The highest rank first (of equals, the first verified).
             passed.sort_by(|a, b| b.rank().total_cmp(&a.rank()));
             for c in passed {
