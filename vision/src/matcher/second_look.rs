@@ -191,15 +191,16 @@ pub(crate) fn locate_refining(
     let inside = |pose: &Isometry3<f64>| within.is_none_or(|(c, r)| (pose * centre - c).norm() <= r);
     let hiding: Vec<&Solid> = solids.iter().collect();
     let corners = corners(model);
-    let mut best: Vec<(f64, Isometry3<f64>)> = Vec::new();
-    for (j, s) in scene.iter().enumerate() {
+    // The poses from each scene line that pass the image check, with their support in view.
+    let from_line = |j: usize, s: &Seg| {
+        let mut passed = Vec::new();
         if claimed[j] || s.len < p.min_seed_length {
-            continue;
+            return passed;
         }
-        let (Some(pa), Some(pb)) = (ev.cam.project_cam(&s.a), ev.cam.project_cam(&s.b)) else { continue };
+        let (Some(pa), Some(pb)) = (ev.cam.project_cam(&s.a), ev.cam.project_cam(&s.b)) else { return passed };
         let len_px = (pb - pa).norm();
         if len_px < 1.0 {
-            continue;
+            return passed;
         }
         for l in &ev.lines {
             let Some((t, x)) = crossing(&pa, &pb, &l.a, &l.b) else { continue };
@@ -241,11 +242,20 @@ pub(crate) fn locate_refining(
                     };
                     let (in_view, share) = image_support_unhidden(model, &pose, ev, &hiding);
                     if in_view >= MIN_IMAGE_SUPPORT_TWO_LINES && share >= MIN_IN_VIEW {
-                        keep(&mut best, in_view, pose);
+                        passed.push((in_view, pose));
                     }
                 }
             }
         }
+        passed
+    };
+    // Scene lines in parallel; their poses kept in the lines' order, as one after the other.
+    use rayon::prelude::*;
+    let per_line: Vec<Vec<(f64, Isometry3<f64>)>> =
+        scene.par_iter().enumerate().map(|(j, s)| from_line(j, s)).collect();
+    let mut best: Vec<(f64, Isometry3<f64>)> = Vec::new();
+    for (in_view, pose) in per_line.into_iter().flatten() {
+        keep(&mut best, in_view, pose);
     }
     let free: Vec<bool> = claimed.iter().map(|c| !c).collect();
     best.into_iter()
