@@ -240,13 +240,25 @@ pub fn refine_in_views(
     pose: &Isometry3<f64>,
     views: &[View],
     (search, stop): (f64, (f64, f64)),
-    keep: &dyn Fn(usize, usize, &Point3<f64>) -> bool,
+    keep: &(dyn Fn(usize, usize, &Point3<f64>) -> bool + Sync),
 ) -> Option<Isometry3<f64>> {
+    use rayon::prelude::*;
     let rows_at = |pose: &Isometry3<f64>| {
-        let mut rows = Rows::new();
-        for (i, v) in views.iter().enumerate() {
-            image_rows(model, pose, v.ev, &v.cam_from_left, search, &|k, x| keep(i, k, x), &mut rows);
-        }
+        // The views' rows gathered in parallel, then added in the views' order.
+        let per_view: Vec<Rows> = views
+            .par_iter()
+            .enumerate()
+            .map(|(i, v)| {
+                let mut rows = Rows::new();
+                image_rows(model, pose, v.ev, &v.cam_from_left, search, &|k, x| keep(i, k, x), &mut rows);
+                rows
+            })
+            .collect();
+        let rows = per_view.into_iter().fold(Rows::new(), |all, v| Rows {
+            normal: all.normal + v.normal,
+            rhs: all.rhs + v.rhs,
+            count: all.count + v.count,
+        });
         (rows.count >= 12 * views.len()).then_some(rows)
     };
     gauss_newton(pose, rows_at, stop)
