@@ -104,11 +104,13 @@ impl<'a> ImageEvidence<'a> {
     /// The evidence of one front-end run on a calibrated pair: [`ImageEvidence::of`] the left
     /// image, with the right image's edgels.
     pub fn of_pair(calib: &'a mesh::StereoCalibration, fe: &'a crate::front_end::FrontEnd) -> ImageEvidence<'a> {
-        let right = RightImage {
-            ev: ImageEvidence::new(&calib.right, &fe.right, Vec::new()),
-            right_from_cam: calib.right.cam_from_world() * calib.left.world_from_cam,
-        };
-        ImageEvidence::of(&calib.left, fe).with_right(right)
+        // Each image's edgels laid out at once, on two threads.
+        let (left, right) = rayon::join(
+            || ImageEvidence::of(&calib.left, fe),
+            || ImageEvidence::new(&calib.right, &fe.right, Vec::new()),
+        );
+        let right_from_cam = calib.right.cam_from_world() * calib.left.world_from_cam;
+        left.with_right(RightImage { ev: right, right_from_cam })
     }
 
     /// The same evidence with the pair's right image.
