@@ -20,12 +20,9 @@ use super::verify::ImageEvidence;
 use nalgebra::{Isometry3, Point3};
 
 /// The passes' search widths across each model edge, pixels: wide first, from where the looks
-/// may leave a pose a few degrees off, then narrow, so that edgels beside the right ones (a
-/// face's other edge a pixel or two away) stop pulling. (A pass at 1.5 px between them, as at
-/// first, changed no report on the tuning seeds, `marvin eval locate`, `widgets.toml` 1-500,
-/// `dense.toml` and `side_light.toml` 1-200, and moved the pose medians by under 0.002 mm and
-/// 0.002 deg: 0.085 / 0.101 / 0.057 mm either way; it was a third of the polish's time.)
-pub const PASSES_PX: [f64; 2] = [3.0, 1.0];
+/// may leave a pose a few degrees off, then narrower, so that edgels beside the right ones
+/// (a face's other edge a pixel or two away) stop pulling.
+pub const PASSES_PX: [f64; 3] = [3.0, 1.5, 1.0];
 
 /// Steps of the last pass small enough to stop at (radians, metres): a hundredth of a millimetre,
 /// against pose errors near 0.1 mm. The calibration flag's limits ([`super::image_fit::FINE_STOP`],
@@ -33,8 +30,8 @@ pub const PASSES_PX: [f64; 2] = [3.0, 1.0];
 const STOP: (f64, f64) = (1e-4, 1e-5);
 
 /// Steps small enough to stop the passes before the last at: a tenth of a millimetre, well
-/// inside the next pass's search (1 px is about two thirds of a millimetre at the parts'
-/// distance), which is all they are for. On the tuning seeds (`marvin eval locate`, `widgets.toml` 1-120,
+/// inside the next pass's search (1.5 px is about a millimetre at the parts' distance), which
+/// is all they are for. On the tuning seeds (`marvin eval locate`, `widgets.toml` 1-120,
 /// `dense.toml` and `side_light.toml` 1-60) the same reports as with [`STOP`] for every pass,
 /// pose medians within a thousandth of a millimetre; the matcher's instructions on the bench
 /// scene 867 M -> 840 M. (A millimetre, a hundred times [`STOP`], saved 60 M but moved the
