@@ -225,7 +225,7 @@ pub(crate) fn judge_by_shading(
             let turned = half_turns(model)
                 .into_par_iter()
                 .filter_map(|turn| {
-                    let c = turns.from(model, (scene, p), ev, report.cam_from_model * turn)?;
+                    let c = turns.refit(model, (scene, p), ev, report.cam_from_model * turn)?;
                     let shades = shades_of(i, model, &c.pose);
                     let fit = light.misfit(&shades)?;
                     let shown: usize = shades.iter().map(|f| f.samples).sum();
@@ -275,8 +275,9 @@ pub(crate) struct TurnedCandidates {
 type StartKey = (String, [u64; 7]);
 
 impl TurnedCandidates {
-    /// [`turned_candidate`] from `start`, refitted once.
-    pub(crate) fn from(
+    /// [`turned_candidate`] from `start`: refitted the first time it is asked for, then the
+    /// same reading again.
+    pub(crate) fn refit(
         &self,
         model: &MatcherModel,
         (scene, p): (&[super::model::Seg], &super::model::MatchParams),

@@ -89,7 +89,7 @@ fn turned_over(
     let (_, c) = half_turns(model)
         .into_par_iter()
         .filter_map(|turn| {
-            let c = turns.from(model, (scene, p), ev, report.cam_from_model * turn)?;
+            let c = turns.refit(model, (scene, p), ev, report.cam_from_model * turn)?;
             let then = judge(model, &c.pose, ev, others)?;
             (c.score >= KEEP_SUPPORT * report.support
                 && then.agreeing >= KEEP_AGREEING * now.agreeing
@@ -142,7 +142,7 @@ pub(crate) fn turn_by_image(
             .into_par_iter()
             // A symmetry of the part reads it as the report does.
             .filter(|turn| !is_symmetry(model, turn))
-            .filter_map(|turn| turns.from(model, (scene, p), ev, report.cam_from_model * turn))
+            .filter_map(|turn| turns.refit(model, (scene, p), ev, report.cam_from_model * turn))
             .filter(|c| c.score >= IMAGE_TURN_KEEP * report.support && c.image_support >= now + IMAGE_TURN_GAIN)
             .max_by(|a, b| a.image_support.total_cmp(&b.image_support));
         if let Some(c) = better {
