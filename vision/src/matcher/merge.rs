@@ -25,17 +25,7 @@ pub fn locate_all(
 ) -> Vec<Located> {
     use rayon::prelude::*;
     let pairs = scene_pairs(scene, p);
-    let mut searches: Vec<Search> = models
-        .par_iter()
-        .map(|m| {
-            let t = std::time::Instant::now();
-            let r = locate_from(m, scene, &pairs, p, image);
-            if std::env::var_os("MARVIN_TIMES").is_some() {
-                eprintln!("MODEL {} {:.2}", m.name, t.elapsed().as_secs_f64() * 1e3);
-            }
-            r
-        })
-        .collect();
+    let mut searches: Vec<Search> = models.par_iter().map(|m| locate_from(m, scene, &pairs, p, image)).collect();
     let mut kept = Vec::new();
     let mut claimed = vec![false; scene.len()];
     let all: Vec<Located> = searches.iter_mut().flat_map(|s| std::mem::take(&mut s.found)).collect();
