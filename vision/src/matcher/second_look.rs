@@ -26,7 +26,7 @@ use super::table::hopelessly_sunk;
 use super::verify::{
     Explained, ImageEvidence, ImageLine, MAX_EXPLAINED, image_support_at_least, image_support_unhidden,
 };
-use nalgebra::{Isometry3, Point2, Point3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix3, Point2, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
 /// The image line's corner end must lie this close to where it meets the 3D line's image (px).
 const CORNER_PX: f64 = 8.0;
@@ -122,18 +122,45 @@ fn turns(
     if -lambda < -slack || -lambda > model_line.len - s.len + slack {
         return None;
     }
-    let r0 = Rotation3::rotation_between(&c.out, u_out)
-        .unwrap_or_else(|| Rotation3::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI));
+    let r0 = turn_between(&c.out, u_out);
     let v = r0 * c.other_out;
     let (a, b, cc) = (n.dot(&v) - n.dot(&u) * u.dot(&v), n.dot(&u.cross(&v)), n.dot(&u) * u.dot(&v));
-    let rho = a.hypot(b);
+    let rho = (a * a + b * b).sqrt();
     if rho < 1e-9 || cc.abs() > rho {
         return None;
     }
-    let (base, delta) = (b.atan2(a), (-cc / rho).acos());
-    let axis = Unit::new_unchecked(u);
-    let turn = |theta: f64| Rotation3::from_axis_angle(&axis, theta) * r0;
-    Some(([turn(base + delta), turn(base - delta)], s0 + u * lambda))
+    // The turns by base +- delta, base = atan2(b, a) and delta = acos(-cc / rho), by their
+    // cosines and sines (the sum and difference formulas): trigonometry was a third of the
+    // second look's time.
+    let (cos_base, sin_base) = (a / rho, b / rho);
+    let cos_delta = -cc / rho;
+    let sin_delta = (1.0 - cos_delta * cos_delta).max(0.0).sqrt();
+    let turn = |sign: f64| {
+        let cos = cos_base * cos_delta - sign * sin_base * sin_delta;
+        let sin = sin_base * cos_delta + sign * cos_base * sin_delta;
+        turn_about(&u, cos, sin) * r0
+    };
+    Some(([turn(1.0), turn(-1.0)], s0 + u * lambda))
+}
+
+/// The least turn taking unit vector `from` onto unit vector `to` (Rodrigues' formula, with
+/// the cosine and sine of the angle their dot and cross products give; as
+/// `Rotation3::rotation_between` but for no inverse cosine). Near opposite, where the axis is
+/// ill-defined, that function's turn, or half a turn about x where it gives none.
+fn turn_between(from: &Vector3<f64>, to: &Vector3<f64>) -> Rotation3<f64> {
+    let (cross, cos) = (from.cross(to), from.dot(to));
+    if 1.0 + cos < 1e-6 {
+        return Rotation3::rotation_between(from, to)
+            .unwrap_or_else(|| Rotation3::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI));
+    }
+    let k = cross.cross_matrix();
+    Rotation3::from_matrix_unchecked(Matrix3::identity() + k + k * k / (1.0 + cos))
+}
+
+/// The turn about unit vector `axis` by the angle of cosine `cos` and sine `sin`.
+fn turn_about(axis: &Vector3<f64>, cos: f64, sin: f64) -> Rotation3<f64> {
+    let m = Matrix3::identity() * cos + axis.cross_matrix() * sin + axis * axis.transpose() * (1.0 - cos);
+    Rotation3::from_matrix_unchecked(m)
 }
 
 impl Corner {
@@ -306,6 +333,25 @@ fn keep(best: &mut Vec<(f64, Isometry3<f64>)>, score: f64, pose: Isometry3<f64>)
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The turns made without trigonometry agree with nalgebra's made with it: between random
+    /// directions (and nearly opposite ones, the fallback), and about random axes by random angles.
+    #[test]
+    fn turns_without_trigonometry_agree_with_nalgebras() {
+        let mut rng = crate::matcher::fixtures::Lcg(5);
+        for k in 0..500 {
+            let from = rng.noise(1.0).normalize();
+            let to = if k % 50 == 0 { (-from + rng.noise(1e-5)).normalize() } else { rng.noise(1.0).normalize() };
+            let ours = turn_between(&from, &to);
+            assert!((ours * from - to).norm() < 1e-9, "does not take {from} onto {to}");
+            let theirs = Rotation3::rotation_between(&from, &to).unwrap();
+            assert!((ours.matrix() - theirs.matrix()).norm() < 1e-9, "not the least turn");
+            let (axis, angle) = (rng.noise(1.0).normalize(), (rng.next() - 0.5) * 7.0);
+            let about = turn_about(&axis, angle.cos(), angle.sin());
+            let theirs = Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(axis), angle);
+            assert!((about.matrix() - theirs.matrix()).norm() < 1e-12);
+        }
+    }
 
     /// A block resting on a table (the world's z = 0) seen from 0.85 m off, the camera looking
     /// down: the block, the camera, its pose (`cam_from_model`) and one 3D line, 80% of its
