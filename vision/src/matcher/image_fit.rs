@@ -81,7 +81,11 @@ fn nearest_edgel_across(ev: &ImageEvidence, u: &Point2<f64>, dir: &Vector2<f64>,
             if px < 0 || py < 0 || px >= ev.edges.width as i64 || py >= ev.edges.height as i64 {
                 continue;
             }
-            let Some(i) = ev.edges.edgel_at(px as usize, py as usize) else { continue };
+            let (px, py) = (px as usize, py as usize);
+            if !ev.occupied(py * ev.edges.width + px) {
+                continue;
+            }
+            let Some(i) = ev.edges.edgel_at(px, py) else { continue };
             let e = &ev.edges.edgels[i as usize];
             if ev.tangent(i).dot(dir).abs() < cos_along {
                 continue;
