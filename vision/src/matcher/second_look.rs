@@ -214,14 +214,22 @@ pub(crate) fn locate_refining(
     (solids, explained): (&[Solid], &Explained),
     (min_to_refine, within): (f64, Option<(Point3<f64>, f64)>),
 ) -> Vec<Located> {
-    let centre = model.bounding_sphere().0;
+    let (centre, radius) = model.bounding_sphere();
     let inside = |pose: &Isometry3<f64>| within.is_none_or(|(c, r)| (pose * centre - c).norm() <= r);
+    // A pose puts a corner (within `radius` of the model's centre) on the scene line, so a line
+    // further than that from the sphere the centre must lie in gives none inside it.
+    let may_reach = |s: &Seg| {
+        within.is_none_or(|(c, r)| {
+            let w = c - s.a;
+            (w - s.dir * w.dot(&s.dir)).norm() <= r + radius + 1e-9
+        })
+    };
     let hiding: Vec<&Solid> = solids.iter().collect();
     let corners = corners(model);
     // The poses from each scene line that pass the image check, with their support in view.
     let from_line = |j: usize, s: &Seg| {
         let mut passed = Vec::new();
-        if claimed[j] || s.len < p.min_seed_length {
+        if claimed[j] || s.len < p.min_seed_length || !may_reach(s) {
             return passed;
         }
         let (Some(pa), Some(pb)) = (ev.cam.project_cam(&s.a), ev.cam.project_cam(&s.b)) else { return passed };
@@ -389,6 +397,33 @@ mod tests {
             crate::matcher::fixtures::on_its_lines(&model, &found[0].cam_from_model, &pose, 1e-3),
             "a located edge is off the block"
         );
+    }
+
+    /// Sought within a sphere round the block's centre (as the rival reading seeks), the block
+    /// is found from its one 3D line, an edge a block's half-size from that centre; within a
+    /// sphere as small placed 5 cm off, nothing is.
+    #[test]
+    fn within_a_sphere_a_line_reaching_it_still_finds_the_block() {
+        let (model, cam, pose, scene) = block_on_one_line();
+        let (edges, lines) = crate::matcher::verify::drawn::model_edges(&model, &pose, &cam);
+        let ev = ImageEvidence::new(&cam, &edges, lines);
+        let nothing_located = Explained::of([], ev.cam);
+        let centre = pose * model.bounding_sphere().0;
+        let seek = |at: Point3<f64>| {
+            let (p, located) = (MatchParams::default(), (&[][..], &nothing_located));
+            locate_refining(
+                &model,
+                &scene,
+                &[false],
+                &p,
+                &ev,
+                located,
+                (MIN_IMAGE_SUPPORT_TO_REFINE, Some((at, 0.005))),
+            )
+        };
+        assert!((scene[0].a - centre).norm() > 0.01, "the line runs through the sphere");
+        assert_eq!(seek(centre).len(), 1, "not found within the sphere round it");
+        assert!(seek(centre + Vector3::new(0.05, 0.0, 0.0)).is_empty(), "found 5 cm off");
     }
 
     /// The same block with the image's edgels cut off on one side (as a part not located might
