@@ -5,7 +5,7 @@
 use super::image_fit::{SEARCH_PX, refine_in_image};
 use super::model::{Located, MatchParams, MatcherModel, Seg};
 use super::pose_fit::{DirectionPair, PointOnLine, pose_from_lines};
-use super::support::{scene_lines_of, support};
+use super::support::{FreeLines, scene_lines_of, support, support_among};
 use super::verify::{ImageEvidence, image_support};
 use nalgebra::Isometry3;
 
@@ -134,10 +134,11 @@ pub(crate) fn refine(
     mut pose: Isometry3<f64>,
     p: &MatchParams,
 ) -> (Isometry3<f64>, f64, Vec<(usize, usize, f64)>) {
-    let (mut score, mut pairs) = support(model, &pose, scene, free, p);
+    let free = FreeLines::new(scene, free);
+    let (mut score, mut pairs) = support_among(model, &pose, scene, &free, p);
     for _ in 0..5 {
         let Some(next) = fit(model, scene, &pairs, &pose) else { break };
-        let (s, pr) = support(model, &next, scene, free, p);
+        let (s, pr) = support_among(model, &next, scene, &free, p);
         if s + 1e-9 < score {
             break;
         }
