@@ -214,7 +214,7 @@ pub fn image_support_at_least(
     ev: &ImageEvidence,
     min: f64,
 ) -> Option<f64> {
-    let mut segments = Vec::new();
+    let mut segments = Vec::with_capacity(model.lines.len());
     let mut all = 0.0;
     for (_, [a, b]) in facing_lines(model, pose, ev.cam) {
         let len = (b - a).norm();
@@ -375,6 +375,29 @@ struct EdgeMask {
 /// Orientation bins of the mask.
 const BINS: f64 = 32.0;
 
+/// `y.atan2(x)` to within [`ROUGH_ATAN2_RAD`], without the library's call: the arctangent of
+/// the smaller over the larger magnitude by `pi/4 z - z (z - 1) (0.2447 + 0.0663 z)` on [0, 1]
+/// (within 0.0015 rad), turned into the right octant.
+fn rough_atan2(y: f64, x: f64) -> f64 {
+    let (ax, ay) = (x.abs(), y.abs());
+    let (small, large) = (ax.min(ay), ax.max(ay));
+    if large == 0.0 {
+        return 0.0;
+    }
+    let z = small / large;
+    let mut a = std::f64::consts::FRAC_PI_4 * z - z * (z - 1.0) * (0.2447 + 0.0663 * z);
+    if ay > ax {
+        a = std::f64::consts::FRAC_PI_2 - a;
+    }
+    if x < 0.0 {
+        a = std::f64::consts::PI - a;
+    }
+    if y < 0.0 { -a } else { a }
+}
+
+/// How far [`rough_atan2`] may be off (radians), with room to spare.
+const ROUGH_ATAN2_RAD: f64 = 0.005;
+
 impl EdgeMask {
     fn of(edges: &EdgeMap) -> EdgeMask {
         let (width, height) = (edges.width, edges.height);
@@ -404,11 +427,14 @@ impl EdgeMask {
     }
 
     /// Every bin holding orientations of edges that run within [`ALONG_RAD`] of image
-    /// direction `dir`.
+    /// direction `dir` (and perhaps a bin more: the mask only rules samples out, and the
+    /// direction's angle is taken from [`rough_atan2`], with [`ROUGH_ATAN2_RAD`] added each way;
+    /// the library's `atan2` was a sixth of the image check's time).
     fn bins_along(dir: Vector2<f64>) -> u32 {
         let width = std::f64::consts::PI / BINS;
-        let gradient = dir.x.atan2(-dir.y).rem_euclid(std::f64::consts::PI) / width;
-        let (lo, hi) = ((gradient - ALONG_RAD / width).floor() as i64, (gradient + ALONG_RAD / width).floor() as i64);
+        let gradient = rough_atan2(dir.x, -dir.y).rem_euclid(std::f64::consts::PI) / width;
+        let reach = (ALONG_RAD + ROUGH_ATAN2_RAD) / width;
+        let (lo, hi) = ((gradient - reach).floor() as i64, (gradient + reach).floor() as i64);
         (lo..=hi).fold(0, |m, b| m | 1 << b.rem_euclid(BINS as i64))
     }
 
@@ -666,6 +692,27 @@ mod tests {
         }
         // Both outcomes happen, so the test says something.
         assert!(found > 1000 && spared > 1000, "found {found}, spared {spared}");
+    }
+
+    /// The rough arctangent stays within its bound of the library's, all round the circle
+    /// (the axes and diagonals too), so the mask's bins hold every edge the exact test takes.
+    #[test]
+    fn the_rough_arctangent_stays_within_its_bound() {
+        let mut worst: f64 = 0.0;
+        for k in 0..100_000 {
+            let angle = (k as f64 / 100_000.0 - 0.5) * std::f64::consts::TAU;
+            for r in [1e-3, 1.0, 7.0] {
+                let (y, x) = (r * angle.sin(), r * angle.cos());
+                let off = (rough_atan2(y, x) - y.atan2(x)).abs();
+                // Either side of the cut at pi the two may name one angle by +-pi.
+                worst = worst.max(off.min((off - std::f64::consts::TAU).abs()));
+            }
+        }
+        for (y, x) in [(0.0, 1.0), (1.0, 0.0), (0.0, -1.0), (-1.0, 0.0), (1.0, 1.0), (-1.0, -1.0), (1.0, -1.0)] {
+            assert!((rough_atan2(y, x) - f64::atan2(y, x)).abs() < 1e-12, "({y}, {x})");
+        }
+        assert!(worst < 0.0016, "off by {worst} rad");
+        assert!(worst < ROUGH_ATAN2_RAD);
     }
 
     /// The nearest-first scan looks at every pixel of the square once, nearer ones first.
