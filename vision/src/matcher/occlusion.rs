@@ -113,13 +113,18 @@ impl Solid {
     /// Whether the solid hides point `x` (`cam` frame) from a camera at the origin.
     pub fn hides(&self, x: &Point3<f64>) -> bool {
         let (d, dist) = (x.coords, x.coords.norm());
-        // The line of sight must pass through the sphere, in front of the point.
-        let along = self.centre.coords.dot(&d) / dist;
-        if along - self.radius > dist - IN_FRONT_M || (d * (along / dist) - self.centre.coords).norm() > self.radius {
+        // The line of sight must pass through the sphere, in front of the point. (Divisions
+        // are dear, and a sample takes several: each divisor's inverse is taken once.)
+        let per_dist = 1.0 / dist;
+        let along = self.centre.coords.dot(&d) * per_dist;
+        if along - self.radius > dist - IN_FRONT_M
+            || (d * (along * per_dist) - self.centre.coords).norm_squared() > self.radius * self.radius
+        {
             return false;
         }
-        let limit = 1.0 - IN_FRONT_M / dist;
-        let at = [d.x / d.z, d.y / d.z];
+        let limit = 1.0 - IN_FRONT_M * per_dist;
+        let per_z = 1.0 / d.z;
+        let at = [d.x * per_z, d.y * per_z];
         let in_front = d.z > 0.0;
         self.facets
             .iter()
