@@ -113,8 +113,9 @@ fn image_rows(
 ) {
     let cam = ev.cam;
     let seen = cam_from_left * pose;
+    let eye = super::model::eye_of(&seen);
     for (k, line) in model.lines.iter().enumerate() {
-        if !model.faces_camera(k, &seen) {
+        if !model.faces_eye(k, &eye) {
             continue;
         }
         let (a, b) = (seen * line.a, seen * line.b);

@@ -253,9 +253,14 @@ impl MatcherModel {
     /// Whether line `k` has a face turned towards a camera at the origin, with the model at
     /// `pose` (lines of no face always do): only such lines can be seen.
     pub fn faces_camera(&self, k: usize, pose: &Isometry3<f64>) -> bool {
+        self.faces_eye(k, &eye_of(pose))
+    }
+
+    /// [`MatcherModel::faces_camera`] with the camera at `eye` in the model's frame ([`eye_of`]
+    /// the pose): a loop over the lines carries the camera there once, not once a line.
+    pub fn faces_eye(&self, k: usize, eye: &Point3<f64>) -> bool {
         let line = &self.lines[k];
-        // In the model's frame, where the normals are: the camera carried there once.
-        self.faces_towards(k, &(eye_of(pose) - nalgebra::center(&line.a, &line.b)), 0.0)
+        self.faces_towards(k, &(eye - nalgebra::center(&line.a, &line.b)), 0.0)
     }
 
     /// Whether line `k` may be what the camera sees from `eye` (the model's frame, see
@@ -289,7 +294,8 @@ impl MatcherModel {
     /// Wireframe length a camera at the origin could see with the model at `pose` (lines with a
     /// face towards the camera; other objects may still hide them).
     pub fn visible_length(&self, pose: &Isometry3<f64>) -> f64 {
-        (0..self.lines.len()).filter(|&k| self.faces_camera(k, pose)).map(|k| self.lines[k].len).sum()
+        let eye = eye_of(pose);
+        (0..self.lines.len()).filter(|&k| self.faces_eye(k, &eye)).map(|k| self.lines[k].len).sum()
     }
 }
 

@@ -184,7 +184,8 @@ fn facing_lines<'m>(
     pose: &'m Isometry3<f64>,
     cam: &'m PinholeCamera,
 ) -> impl Iterator<Item = ([nalgebra::Point3<f64>; 2], [Point2<f64>; 2])> + 'm {
-    model.lines.iter().enumerate().filter(|(k, _)| model.faces_camera(*k, pose)).filter_map(move |(_, line)| {
+    let eye = super::model::eye_of(pose);
+    model.lines.iter().enumerate().filter(move |(k, _)| model.faces_eye(*k, &eye)).filter_map(move |(_, line)| {
         let (a3, b3) = (pose * line.a, pose * line.b);
         Some(([a3, b3], [cam.project_cam(&a3)?, cam.project_cam(&b3)?]))
     })
