@@ -217,16 +217,28 @@ pub(crate) struct ScenePair {
 /// Every ordered pair of scene lines long enough to seed and far enough from parallel.
 pub(crate) fn scene_pairs(scene: &[Seg], p: &MatchParams) -> Vec<ScenePair> {
     let seeds: Vec<usize> = (0..scene.len()).filter(|&j| scene[j].len >= p.min_seed_length).collect();
-    let mut out = Vec::new();
-    for &j in &seeds {
-        for &l in &seeds {
-            let (sj, sl) = (&scene[j], &scene[l]);
+    // Each unordered pair's relations worked out once (every search waits on them): swapped,
+    // the angle and separation are the same and the closest approach's places trade over, bit
+    // for bit (each product and sum is taken again with its terms swapped or negated).
+    let n = seeds.len();
+    let mut relations = vec![None; n * n];
+    for a in 0..n {
+        for b in a + 1..n {
+            let (sj, sl) = (&scene[seeds[a]], &scene[seeds[b]]);
             let angle = line_angle(&sj.dir, &sl.dir);
-            if j == l || angle < 0.3 {
+            if angle < 0.3 {
                 continue;
             }
             let separation = separation(&sj.a, &sj.dir, &sl.a, &sl.dir);
-            let (at_j, at_l) = closest_params(&sj.a, &sj.dir, &sl.a, &sl.dir);
+            let (at_a, at_b) = closest_params(&sj.a, &sj.dir, &sl.a, &sl.dir);
+            relations[a * n + b] = Some((angle, separation, at_a, at_b));
+            relations[b * n + a] = Some((angle, separation, at_b, at_a));
+        }
+    }
+    let mut out = Vec::with_capacity(relations.iter().flatten().count());
+    for (a, &j) in seeds.iter().enumerate() {
+        for (b, &l) in seeds.iter().enumerate() {
+            let Some((angle, separation, at_j, at_l)) = relations[a * n + b] else { continue };
             let cell = [cell_of(separation, p.separation_tolerance), cell_of(angle, p.angle_tolerance)];
             out.push(ScenePair { j, l, angle, separation, at_j, at_l, cell });
         }
@@ -396,7 +408,9 @@ const CELLS_PER_TOLERANCE: u32 = 2;
 /// The cell `value` falls in, cells a [`CELLS_PER_TOLERANCE`]th of `tolerance` wide from 0
 /// (values below 0 in the first).
 fn cell_of(value: f64, tolerance: f64) -> u32 {
-    (value * CELLS_PER_TOLERANCE as f64 / tolerance).floor().clamp(0.0, u32::MAX as f64) as u32
+    // The cast truncates, which is the floor from 0 up, and saturates (NaN and below 0 to 0):
+    // `floor` is a call to the C library on the baseline x86-64 instruction set.
+    (value * CELLS_PER_TOLERANCE as f64 / tolerance) as u32
 }
 
 /// A fragment's closest approach to its partner may fall this many support distances beyond
@@ -487,6 +501,34 @@ mod tests {
         // The table hands over few more than those within (cells are half a tolerance wide).
         assert!(within > 2000, "only {within} within the tolerances");
         assert!(handed < 3 * within, "{handed} handed for {within} within");
+    }
+
+    /// The pairs worked out once per unordered pair are, bit for bit and in order, those worked
+    /// out for every ordered pair on its own.
+    #[test]
+    fn scene_pairs_worked_out_once_each_way_round_match_each_worked_out_alone() {
+        let p = MatchParams::default();
+        let mut rng = Lcg(9);
+        let scene: Vec<Seg> = (0..40)
+            .map(|_| {
+                let a = Point3::from(rng.noise(0.1)) + Vector3::new(0.0, 0.0, 0.8);
+                Seg::new(a, a + rng.noise(0.05))
+            })
+            .collect();
+        let mut alone = Vec::new();
+        for (j, sj) in scene.iter().enumerate().filter(|(_, s)| s.len >= p.min_seed_length) {
+            for (l, sl) in scene.iter().enumerate().filter(|(_, s)| s.len >= p.min_seed_length) {
+                let angle = line_angle(&sj.dir, &sl.dir);
+                if j != l && angle >= 0.3 {
+                    let (at_j, at_l) = closest_params(&sj.a, &sj.dir, &sl.a, &sl.dir);
+                    alone.push((j, l, angle, separation(&sj.a, &sj.dir, &sl.a, &sl.dir), at_j, at_l));
+                }
+            }
+        }
+        let once: Vec<_> =
+            scene_pairs(&scene, &p).iter().map(|s| (s.j, s.l, s.angle, s.separation, s.at_j, s.at_l)).collect();
+        assert!(alone.len() > 500, "only {} pairs", alone.len());
+        assert_eq!(once, alone);
     }
 
     fn near(a: &Isometry3<f64>, b: &Isometry3<f64>) -> bool {
