@@ -3,8 +3,9 @@
 //! lines), the third (candidates partly hidden by objects already located), each report set
 //! against other models read from its lines ([`rival_reading`]), the reports turned over where
 //! the edgels' depths or the image say so ([`super::turnover::turn_by_depth`],
-//! [`super::turnover::turn_by_image`]), and last the reports' faces
-//! read for one light ([`super::shading::judge_by_shading`]).
+//! [`super::turnover::turn_by_image`]), their poses polished on both images
+//! ([`super::polish`]), and last the reports' faces read for one light
+//! ([`super::shading::judge_by_shading`]).
 
 use super::hypotheses::{ScenePair, scene_pairs};
 use super::model::{Located, MatchParams, MatcherModel, Seg};
@@ -64,8 +65,15 @@ pub fn locate_all(
         let turns = super::shading::TurnedCandidates::default();
         super::turnover::turn_by_depth(models, (scene, p), ev, (RIVAL_MAX_SUPPORT, &turns), &mut kept);
         super::turnover::turn_by_image(models, (scene, p), ev, (RIVAL_MAX_SUPPORT, &turns), &mut kept);
-        super::shading::judge_by_shading(models, (scene, p), ev, (RIVAL_MAX_SUPPORT, &turns), &mut kept);
+        // Polished before the shading is judged: a face's grey level tells a reading a few
+        // degrees off from one that fits, and the looks leave many a few degrees off. The
+        // judge asks the pose before the polish too, and a reading it turns over is polished
+        // after it.
+        let unpolished: Vec<Isometry3<f64>> = kept.iter().map(|r| r.cam_from_model).collect();
         super::polish::polish_in_stereo(models, (scene, p), ev, &mut kept);
+        let judge = (RIVAL_MAX_SUPPORT, &turns);
+        let turned = super::shading::judge_by_shading(models, (scene, p), ev, judge, (&mut kept, &unpolished));
+        super::polish::polish_those(models, (scene, p), ev, &mut kept, &turned);
     }
     kept
 }

@@ -54,8 +54,20 @@ pub fn polish_in_stereo(
     ev: &ImageEvidence,
     kept: &mut [Located],
 ) {
+    polish_those(models, (scene, p), ev, kept, &vec![true; kept.len()]);
+}
+
+/// [`polish_in_stereo`] for the reports of `kept` marked in `which` only, the others standing
+/// where they are as solids that may hide them.
+pub(crate) fn polish_those(
+    models: &[MatcherModel],
+    (scene, p): (&[Seg], &MatchParams),
+    ev: &ImageEvidence,
+    kept: &mut [Located],
+    which: &[bool],
+) {
     use rayon::prelude::*;
-    let Some(right) = ev.right.as_deref() else { return };
+    let Some(right) = ev.right.as_deref().filter(|_| which.contains(&true)) else { return };
     let views = [
         View { ev, cam_from_left: Isometry3::identity() },
         View { ev: &right.ev, cam_from_left: right.right_from_cam },
@@ -71,6 +83,9 @@ pub fn polish_in_stereo(
         .par_iter()
         .enumerate()
         .map(|(i, r)| {
+            if !which.get(i).copied().unwrap_or(false) {
+                return None;
+            }
             let others: Vec<Vec<&Solid>> = solids
                 .iter()
                 .map(|in_view| {
@@ -187,6 +202,13 @@ mod tests {
             assert_eq!((*g, *w), (kept[0].cam_from_model * mg, *mw));
         }
         assert_eq!(kept[0].grasps.len(), wedge.grasps.len());
+
+        // Only the reports marked are polished.
+        let mut marked = [report(&wedge, start), report(&wedge, start)];
+        polish_those(std::slice::from_ref(&wedge), (&lines, &p), &both, &mut marked, &[false, true]);
+        assert_eq!(marked[0].cam_from_model, start, "the report not marked stands");
+        let (mm, deg) = off_by(&truth, &marked[1].cam_from_model);
+        assert!(mm < 0.05 && deg < 0.05, "the marked one: {mm:.3} mm, {deg:.3} deg off");
     }
 
     /// What may hide a wedge from a camera besides its own bulk: a block between the camera and
