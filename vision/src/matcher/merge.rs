@@ -1,6 +1,7 @@
 //! All models at once: each model's matcher in parallel, then the merge that keeps the best
 //! supported of reports that share lines or space, the second look (objects with too few 3D
-//! lines), the third (candidates partly hidden by objects already located), each report set
+//! lines), the third (candidates partly hidden by objects already located), the table look
+//! and the image look (parts lying flat on too few 3D lines, or none), each report set
 //! against other models read from its lines ([`rival_reading`]), the reports turned over where
 //! the edgels' depths or the image say so ([`super::turnover::turn_by_depth`],
 //! [`super::turnover::turn_by_image`]), their poses polished on both images
@@ -53,6 +54,16 @@ pub fn locate_all(
             })
             .collect();
         resolve(models, (scene, p), on_table, &mut kept, &mut claimed, image);
+    }
+    if let Some(ev) = image.filter(|ev| p.table.is_some() && ev.right.is_some() && !ev.lines.is_empty()) {
+        let explained = explained_by(models, &kept, ev);
+        let corners = super::image_look::image_corners(ev, &explained);
+        let located = super::image_look::LocatedSolids::new(models, &kept, ev);
+        let from_image: Vec<Located> = models
+            .par_iter()
+            .filter_map(|m| super::image_look::locate(m, scene, &claimed, p, ev, (&corners, &located, &explained)))
+            .collect();
+        resolve(models, (scene, p), from_image, &mut kept, &mut claimed, image);
     }
     if let Some(ev) = image.filter(|ev| !ev.lines.is_empty()) {
         for i in 0..kept.len() {

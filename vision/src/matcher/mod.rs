@@ -43,6 +43,7 @@
 //! - [`shading`]: the grey levels of a reading's faces, read off the edgels beside its edges.
 //! - [`table`]: the table the parts rest on; readings through it are refused.
 //! - [`table_look`]: parts lying flat on the table on too few 3D lines for the first look.
+//! - [`image_look`]: parts lying flat on the table on no 3D line, from an image corner and both images.
 //! - [`merge`]: all models in parallel, reports merged, the second, third and table looks.
 //! - [`polish`]: each report's pose pulled onto the edgels of both images at once.
 //!
@@ -52,6 +53,7 @@
 pub mod depths;
 pub mod hypotheses;
 pub mod image_fit;
+pub mod image_look;
 pub mod light;
 pub mod merge;
 pub mod model;

@@ -108,7 +108,12 @@ pub(crate) fn polish_those(
 /// `pose` after the passes of [`PASSES_PX`], each fitting only what neither `others` (the
 /// other reports' solids, in each view's camera frame) nor the model's own bulk at the pass's
 /// start hides from each camera.
-fn polished(model: &MatcherModel, pose: &Isometry3<f64>, others: &[Vec<&Solid>], views: &[View]) -> Isometry3<f64> {
+pub(crate) fn polished(
+    model: &MatcherModel,
+    pose: &Isometry3<f64>,
+    others: &[Vec<&Solid>],
+    views: &[View],
+) -> Isometry3<f64> {
     PASSES_PX.iter().enumerate().fold(*pose, |pose, (pass, &search)| {
         let stop = if pass + 1 < PASSES_PX.len() { COARSE_STOP } else { STOP };
         let hiders: Vec<(Solid, Vec<&Solid>)> =

@@ -51,16 +51,16 @@ const MIN_IMAGE_SUPPORT_TO_REFINE: f64 = 0.6;
 const CANDIDATES: usize = 8;
 
 /// Two model edges leaving one corner: `corner` and the unit directions out of it.
-struct Corner {
-    line: usize,
-    other: usize,
-    corner: Point3<f64>,
-    out: Vector3<f64>,
-    other_out: Vector3<f64>,
-    other_len: f64,
+pub(crate) struct Corner {
+    pub(crate) line: usize,
+    pub(crate) other: usize,
+    pub(crate) corner: Point3<f64>,
+    pub(crate) out: Vector3<f64>,
+    pub(crate) other_out: Vector3<f64>,
+    pub(crate) other_len: f64,
 }
 
-fn corners(model: &MatcherModel) -> Vec<Corner> {
+pub(crate) fn corners(model: &MatcherModel) -> Vec<Corner> {
     let mut out = Vec::new();
     for (i, li) in model.lines.iter().enumerate() {
         for (k, lk) in model.lines.iter().enumerate() {

@@ -124,7 +124,7 @@ pub(crate) fn laid_flat(table: &Table, model: &MatcherModel, pose: &Isometry3<f6
 
 /// Whether two starts lie within 3 mm and 3 degrees of each other (refined, they would come to
 /// the same).
-fn same_place(a: &Isometry3<f64>, b: &Isometry3<f64>) -> bool {
+pub(crate) fn same_place(a: &Isometry3<f64>, b: &Isometry3<f64>) -> bool {
     (a.translation.vector - b.translation.vector).norm() < 0.003 && a.rotation.angle_to(&b.rotation) < 3f64.to_radians()
 }
 

@@ -1,0 +1,370 @@
+//! The image look: parts lying flat on the table that stereo gave no 3D line to seed from,
+//! found from two image lines meeting at a corner, the table, and both images.
+//!
+//! Where stereo lifts none of a part's edges (its edges near the rasters' direction, or its
+//! silhouette matched to other edges in the right image), every other look is blind to it; yet
+//! the left image may show its whole outline (under the side light, `side_light.toml` seeds
+//! 1-200: five parts missed on no 3D line at all, their true poses running along edgels for
+//! 77-100% of their wireframes). A part lying flat on the table has three degrees of freedom
+//! left; a corner of the image where two unlifted image lines meet fixes them, given which
+//! model corner it is and which face the part rests on: the corner lies on its ray at the
+//! model corner's height above the top, and the model edge leaving it lies level in the plane
+//! of the first image line, which fixes the turn about the table's normal. The second image
+//! line must then run along the corner's other edge. Such a pose rests on no 3D evidence, so it
+//! is fitted to both images' edgels at once ([`super::polish::polished`]), laid flat again, and
+//! must be borne out by both images: [`MIN_IMAGE_SUPPORT`] of the part in view in each, which
+//! a part read where another's edges happen to meet rarely is in both views.
+//!
+//! On the tuning seeds (`marvin eval locate`, `widgets.toml` 1-500, `dense.toml` and
+//! `side_light.toml` 1-200) this found 0 / 5 / 6 objects more (located 98.18 / 91.60 / 94.68%
+//! -> 98.18 / 91.78 / 95.11%) with the same 5 / 13 / 2 false reports. Its bars were set once,
+//! as the second look's for a pose on one 3D line (0.85 of the wireframe), not tuned.
+
+use super::model::{Located, MatchParams, MatcherModel, Seg, Table, eye_of};
+use super::occlusion::{MIN_IN_VIEW, Solid};
+use super::second_look::{Corner, corners};
+use super::support::support;
+use super::table::rests_flat;
+use super::table_look::{REST_M, laid_flat};
+use super::verify::{Explained, ImageEvidence, MAX_EXPLAINED, image_support_at_least, image_support_unhidden};
+use nalgebra::{Isometry3, Matrix3, Point2, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
+
+/// Two image lines' ends this close (pixels) meet at a corner, which lies where the lines
+/// cross, no further than this from either end.
+const CORNER_PX: f64 = 4.0;
+/// Image lines meeting at a corner make at least this angle (radians), as the second look's
+/// corners do.
+const MIN_CORNER_RAD: f64 = 0.35;
+/// The corner's other model edge must image within this angle (radians) of the second line.
+const ALONG_RAD: f64 = 0.05;
+/// A pose from the image look must run along edgels for this share of the part in view, in
+/// each image.
+pub(crate) const MIN_IMAGE_SUPPORT: f64 = 0.85;
+/// A pose is fitted to the images if this much of it already runs along the left's edgels.
+const MIN_IMAGE_SUPPORT_TO_REFINE: f64 = 0.6;
+/// The corner's other model edge, turned, must lie this near the plane of the other image line
+/// (the cosine of its angle to the plane's normal) before its image is worked out.
+const IN_PLANE: f64 = 0.1;
+/// An image line another object's edges explain for more than this share is no part's corner.
+const MAX_LINE_EXPLAINED: f64 = 0.5;
+
+/// Where two image lines meet: the crossing point and, for each line, its end away from it.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct ImageCorner {
+    at: Point2<f64>,
+    far: [Point2<f64>; 2],
+    normals: [Vector3<f64>; 2],
+}
+
+/// The corners where two of `ev`'s image lines (those the `explained` edges do not account for)
+/// meet end to end.
+pub(crate) fn image_corners(ev: &ImageEvidence, explained: &Explained) -> Vec<ImageCorner> {
+    let lines = &ev.lines;
+    // Whether each line is another object's, asked only of lines that meet another (the
+    // dearer test).
+    let mut unexplained: Vec<Option<bool>> = vec![None; lines.len()];
+    let mut out = Vec::new();
+    for (i, li) in lines.iter().enumerate() {
+        for (k, lk) in lines.iter().enumerate().skip(i + 1) {
+            let (di, dk) = ((li.b - li.a).normalize(), (lk.b - lk.a).normalize());
+            if di.dot(&dk).abs() > MIN_CORNER_RAD.cos() {
+                continue;
+            }
+            let Some(at) = crossing(&li.a, &di, &lk.a, &dk) else { continue };
+            let near_end = |a: &Point2<f64>, b: &Point2<f64>| {
+                let (da, db) = ((a - at).norm(), (b - at).norm());
+                (da.min(db) <= CORNER_PX).then_some(if da < db { *b } else { *a })
+            };
+            let (Some(far_i), Some(far_k)) = (near_end(&li.a, &li.b), near_end(&lk.a, &lk.b)) else { continue };
+            let mut free = |j: usize| {
+                *unexplained[j].get_or_insert_with(|| explained.share_of_line(&lines[j]) <= MAX_LINE_EXPLAINED)
+            };
+            if free(i) && free(k) {
+                out.push(ImageCorner { at, far: [far_i, far_k], normals: [li.normal, lk.normal] });
+            }
+        }
+    }
+    out
+}
+
+/// Where the line through `p` along `d` crosses the one through `q` along `e`.
+fn crossing(
+    p: &Point2<f64>,
+    d: &nalgebra::Vector2<f64>,
+    q: &Point2<f64>,
+    e: &nalgebra::Vector2<f64>,
+) -> Option<Point2<f64>> {
+    let den = d.x * e.y - d.y * e.x;
+    if den.abs() < 1e-9 {
+        return None;
+    }
+    let w = q - p;
+    Some(p + d * ((w.x * e.y - w.y * e.x) / den))
+}
+
+/// A model corner as a part lying flat on its face `resting` (outward normal, model frame)
+/// shows it, in `cam`'s axes before the turn about the table's normal that places it: the
+/// turn `lay` that rests the face on the table, the corner's level edge leaving it along
+/// `out`, the other along `other`, and the corner's height above the top.
+struct FlatCorner<'c> {
+    corner: &'c Corner,
+    lay: Rotation3<f64>,
+    out: Vector3<f64>,
+    other: Vector3<f64>,
+    out_len: f64,
+    height: f64,
+}
+
+fn flat_corners<'c>(model: &MatcherModel, corners: &'c [Corner], up: &Vector3<f64>) -> Vec<FlatCorner<'c>> {
+    let mut out = Vec::new();
+    for n in &model.resting {
+        let lay = Rotation3::rotation_between(n, &-up).unwrap_or_else(|| {
+            Rotation3::from_axis_angle(
+                &nalgebra::Unit::new_normalize(n.cross(&Vector3::x()).cross(n)),
+                std::f64::consts::PI,
+            )
+        });
+        let lowest = model.corners.iter().map(|c| n.dot(&c.coords)).fold(f64::MIN, f64::max);
+        for c in corners.iter().filter(|c| c.out.dot(n).abs() < 1e-6) {
+            let height = lowest - n.dot(&c.corner.coords);
+            let out_len = model.lines[c.line].len;
+            out.push(FlatCorner { corner: c, lay, out: lay * c.out, other: lay * c.other_out, out_len, height });
+        }
+    }
+    out
+}
+
+/// An image corner with one of its lines taken for a level model edge: the ray through the
+/// corner, and the level direction in that line's plane that images along it, out of the corner.
+struct LevelEdge<'i> {
+    ic: &'i ImageCorner,
+    first: usize,
+    ray: Vector3<f64>,
+    dir: Vector3<f64>,
+}
+
+impl<'i> LevelEdge<'i> {
+    fn new(ic: &'i ImageCorner, first: usize, up: &Vector3<f64>, ev: &ImageEvidence) -> Option<LevelEdge<'i>> {
+        let ray = ev.cam.ray_cam(ic.at.x, ic.at.y);
+        let level = ic.normals[first].cross(up);
+        if level.norm() < 1e-9 {
+            return None;
+        }
+        // Which way the level direction images does not depend on how far along the ray.
+        let dir = level.normalize();
+        let step = ev.cam.project_cam(&Point3::from(ray + dir * 0.01))? - ev.cam.project_cam(&Point3::from(ray))?;
+        let dir = if step.dot(&(ic.far[first] - ic.at)) < 0.0 { -dir } else { dir };
+        Some(LevelEdge { ic, first, ray, dir })
+    }
+
+    /// The pose that rests `f`'s face on `table` with its corner on the ray and its level edge
+    /// along this one; `None` where the ray misses the corner's height or the corner's other
+    /// edge does not image along the corner's other line, out of the corner and at least as long.
+    fn pose(&self, f: &FlatCorner, table: &Table, ev: &ImageEvidence) -> Option<Isometry3<f64>> {
+        let up = Vector3::from(table.up);
+        // The turn about the normal taking the level edge onto `dir`, by its cosine and sine;
+        // the other edge turned by it must lie near the other line's plane (a cheap test first).
+        let (cos, sin) = (f.out.dot(&self.dir), up.dot(&f.out.cross(&self.dir)));
+        let other = f.other * cos + up.cross(&f.other) * sin + up * (up.dot(&f.other) * (1.0 - cos));
+        if self.ic.normals[1 - self.first].dot(&other).abs() > IN_PLANE {
+            return None;
+        }
+        let s = (f.height - table.camera_height_m) / up.dot(&self.ray);
+        if s.is_nan() || s <= 0.0 {
+            return None;
+        }
+        let at = Point3::from(self.ray * s);
+        // Each image line is some stretch of its edge: no longer than the edge's image.
+        let first = ev.cam.project_cam(&(at + self.dir * f.out_len))? - self.ic.at;
+        if (self.ic.far[self.first] - self.ic.at).norm() > first.norm() + CORNER_PX {
+            return None;
+        }
+        let edge = ev.cam.project_cam(&(at + other * f.corner.other_len))? - self.ic.at;
+        let line = self.ic.far[1 - self.first] - self.ic.at;
+        if edge.dot(&line) < ALONG_RAD.cos() * edge.norm() * line.norm() || line.norm() > edge.norm() + CORNER_PX {
+            return None;
+        }
+        let yaw = Matrix3::identity() * cos + up.cross_matrix() * sin + up * up.transpose() * (1.0 - cos);
+        let rotation = Rotation3::from_matrix_unchecked(yaw) * f.lay;
+        let rotation = UnitQuaternion::from_rotation_matrix(&rotation);
+        Some(Isometry3::from_parts(Translation3::from(at.coords - rotation * f.corner.corner.coords), rotation))
+    }
+}
+
+/// The objects located so far as solids in each camera's frame (left, then right): what may
+/// hide a part from each. Made when first asked for: most scenes leave the image look no pose
+/// to fit.
+pub(crate) struct LocatedSolids<'a> {
+    models: &'a [MatcherModel],
+    kept: &'a [Located],
+    right_from_cam: Isometry3<f64>,
+    solids: std::sync::OnceLock<[Vec<Solid>; 2]>,
+}
+
+impl<'a> LocatedSolids<'a> {
+    pub(crate) fn new(models: &'a [MatcherModel], kept: &'a [Located], ev: &ImageEvidence) -> LocatedSolids<'a> {
+        let right_from_cam = ev.right.as_ref().map_or(Isometry3::identity(), |r| r.right_from_cam);
+        LocatedSolids { models, kept, right_from_cam, solids: std::sync::OnceLock::new() }
+    }
+
+    fn get(&self) -> &[Vec<Solid>; 2] {
+        self.solids.get_or_init(|| {
+            let in_frame = |from_left: &Isometry3<f64>| {
+                self.kept
+                    .iter()
+                    .filter_map(|l| {
+                        let model = self.models.iter().find(|m| m.name == l.model)?;
+                        Some(Solid::new(model, &(from_left * l.cam_from_model)))
+                    })
+                    .collect()
+            };
+            [in_frame(&Isometry3::identity()), in_frame(&self.right_from_cam)]
+        })
+    }
+}
+
+/// At most one object of `model` lying flat on the table, from `image_corners`, on the lines
+/// not `claimed`, with the `located` objects' solids (in each camera's frame) hiding what lies
+/// behind them and the `explained` image edges counting for none of it. Nothing without the
+/// table or the right image.
+pub(crate) fn locate(
+    model: &MatcherModel,
+    scene: &[Seg],
+    claimed: &[bool],
+    p: &MatchParams,
+    ev: &ImageEvidence,
+    (image_corners, located, explained): (&[ImageCorner], &LocatedSolids, &Explained),
+) -> Option<Located> {
+    let (table, right) = (p.table.as_ref()?, ev.right.as_deref()?);
+    if image_corners.is_empty() {
+        return None;
+    }
+    let views = [
+        super::image_fit::View { ev, cam_from_left: Isometry3::identity() },
+        super::image_fit::View { ev: &right.ev, cam_from_left: right.right_from_cam },
+    ];
+    let corners = corners(model);
+    let up = Vector3::from(table.up);
+    let flat = flat_corners(model, &corners, &up);
+    let mut best: Option<(f64, Isometry3<f64>)> = None;
+    let mut tried: Vec<Isometry3<f64>> = Vec::new();
+    let edges = image_corners.iter().flat_map(|ic| (0..2).filter_map(move |first| LevelEdge::new(ic, first, &up, ev)));
+    for edge in edges {
+        for f in &flat {
+            let Some(start) = edge.pose(f, table, ev) else { continue };
+            let eye = eye_of(&start);
+            if !model.may_be_seen(f.corner.line, &eye) || !model.may_be_seen(f.corner.other, &eye) {
+                continue;
+            }
+            if image_support_at_least(model, &start, ev, MIN_IMAGE_SUPPORT_TO_REFINE).is_none() {
+                continue;
+            }
+            let solids = located.get();
+            let others: Vec<Vec<&Solid>> = solids.iter().map(|s| s.iter().collect()).collect();
+            let pose = laid_flat(table, model, &super::polish::polished(model, &start, &others, &views));
+            if tried.iter().any(|t| super::table_look::same_place(t, &pose)) {
+                continue;
+            }
+            tried.push(pose);
+            if !rests_flat(table, model, &pose, REST_M) {
+                continue;
+            }
+            let Some(seen) = seen_in_both(model, &pose, &views, located.get()) else { continue };
+            if explained.share(model, &pose, ev.cam) <= MAX_EXPLAINED && best.is_none_or(|(b, _)| seen > b) {
+                best = Some((seen, pose));
+            }
+        }
+    }
+    let (seen, pose) = best?;
+    let free: Vec<bool> = claimed.iter().map(|c| !c).collect();
+    let (score, pairs) = support(model, &pose, scene, &free, p);
+    Some(super::ranking::Candidate { pose, score, pairs, image_support: seen }.located(model, seen))
+}
+
+/// The lesser of the shares of the part in view that run along edgels in the two images, if
+/// both reach [`MIN_IMAGE_SUPPORT`] and enough of the part is in view in each.
+fn seen_in_both(
+    model: &MatcherModel,
+    pose: &Isometry3<f64>,
+    views: &[super::image_fit::View; 2],
+    solids: &[Vec<Solid>; 2],
+) -> Option<f64> {
+    let mut least = f64::MAX;
+    for (v, in_view) in views.iter().zip(solids) {
+        let at = v.cam_from_left * pose;
+        let own = Solid::new(model, &at);
+        let hiding: Vec<&Solid> = in_view.iter().chain([&own]).collect();
+        let (seen, share) = image_support_unhidden(model, &at, v.ev, &hiding);
+        if seen < MIN_IMAGE_SUPPORT || share < MIN_IN_VIEW {
+            return None;
+        }
+        least = least.min(seen);
+    }
+    Some(least)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::matcher::fixtures::{model, verged_pair};
+    use crate::matcher::verify::{RightImage, drawn::model_edges};
+
+    /// A block lying flat on the table (the world's z = 0), its camera-facing edges drawn in both
+    /// images of a verged pair and its image lines in the left, but no 3D line at all.
+    struct Scene {
+        block: MatcherModel,
+        truth: Isometry3<f64>,
+        cams: (mesh::PinholeCamera, mesh::PinholeCamera),
+        table: Table,
+    }
+
+    fn scene() -> Scene {
+        let block = model("block");
+        let cams = verged_pair();
+        let lowest = block.corners.iter().map(|c| c.z).fold(f64::MAX, f64::min);
+        let world_from_model = Isometry3::from_parts(
+            Translation3::new(0.02, -0.03, -lowest),
+            UnitQuaternion::from_euler_angles(0.0, 0.0, 0.5),
+        );
+        let truth = cams.0.cam_from_world() * world_from_model;
+        let table = Table::from_cam_from_table(&cams.0.cam_from_world());
+        Scene { block, truth, cams, table }
+    }
+
+    /// The image look on `s`, the right image showing the block at `right_pose` (`cam` frame).
+    fn look(s: &Scene, right_pose: &Isometry3<f64>) -> Option<Located> {
+        let (left, right) = &s.cams;
+        let right_from_cam = right.cam_from_world() * left.world_from_cam;
+        let (left_edges, lines) = model_edges(&s.block, &s.truth, left);
+        let (right_edges, _) = model_edges(&s.block, &(right_from_cam * right_pose), right);
+        let ev = ImageEvidence::new(left, &left_edges, lines)
+            .with_right(RightImage { ev: ImageEvidence::new(right, &right_edges, Vec::new()), right_from_cam });
+        let p = MatchParams { table: Some(s.table), ..MatchParams::default() };
+        let explained = Explained::of(std::iter::empty(), left);
+        let corners = image_corners(&ev, &explained);
+        assert!(!corners.is_empty(), "the block's outline meets at corners");
+        let located = LocatedSolids::new(&[], &[], &ev);
+        locate(&s.block, &[], &[], &p, &ev, (&corners, &located, &explained))
+    }
+
+    /// Found from the image corners alone, the block comes out where it lies, within a fraction
+    /// of a millimetre and degree (up to its symmetry: on its lines), with no 3D support.
+    #[test]
+    fn a_part_flat_on_the_table_is_found_from_the_corners_of_both_images() {
+        let s = scene();
+        let found = look(&s, &s.truth).expect("the block");
+        assert!(crate::matcher::fixtures::on_its_lines(&s.block, &found.cam_from_model, &s.truth, 5e-4));
+        assert_eq!(found.support, 0.0);
+        assert!(found.image_support >= MIN_IMAGE_SUPPORT);
+    }
+
+    /// The right image bears out no pose the left's corners give when it shows the block 1 cm
+    /// further along the table: nothing is reported.
+    #[test]
+    fn a_part_the_right_image_does_not_show_is_not_reported() {
+        let s = scene();
+        let up = Vector3::from(s.table.up);
+        let aside = up.cross(&Vector3::z()).normalize() * 0.01;
+        assert!(look(&s, &(Translation3::from(aside) * s.truth)).is_none());
+    }
+}
