@@ -55,7 +55,7 @@ pub fn locate_all(
             .collect();
         resolve(models, (scene, p), on_table, &mut kept, &mut claimed, image);
     }
-    if let Some(ev) = image.filter(|ev| p.table.is_some() && ev.right.is_some() && !ev.lines.is_empty()) {
+    if let Some(ev) = image.filter(|ev| p.table.is_some() && ev.right.is_some()) {
         let explained = explained_by(models, &kept, ev);
         let corners = super::image_look::image_corners(ev, &explained);
         let located = super::image_look::LocatedSolids::new(models, &kept, ev);

@@ -70,6 +70,9 @@ pub struct MatcherModel {
     pub(crate) resting: Vec<Vector3<f64>>,
     /// The lines' ends, each once (model frame).
     pub(crate) corners: Vec<Point3<f64>>,
+    /// Every two lines leaving one corner at an angle, both ways round: where the second look
+    /// and the image look put a model corner on an image's.
+    pub(crate) corner_edges: Vec<Corner>,
 }
 
 impl MatcherModel {
@@ -88,6 +91,7 @@ impl MatcherModel {
         MatcherModel {
             resting: resting_normals(&triangles),
             corners: distinct_ends(&lines),
+            corner_edges: corner_edges(&lines),
             face_sides,
             convex: is_convex(&triangles),
             interior: interior_points(bounds, &triangles),
@@ -106,6 +110,44 @@ impl MatcherModel {
             grid: std::sync::OnceLock::new(),
         }
     }
+}
+
+/// Two model edges leaving one corner: `corner` and the unit directions out of it.
+#[derive(Debug, Clone)]
+pub(crate) struct Corner {
+    pub(crate) line: usize,
+    pub(crate) other: usize,
+    pub(crate) corner: Point3<f64>,
+    pub(crate) out: Vector3<f64>,
+    pub(crate) other_out: Vector3<f64>,
+    pub(crate) other_len: f64,
+}
+
+/// Every two edges of `lines` that leave one corner at an angle, both ways round.
+fn corner_edges(lines: &[Seg]) -> Vec<Corner> {
+    let mut out = Vec::new();
+    for (i, li) in lines.iter().enumerate() {
+        for (k, lk) in lines.iter().enumerate() {
+            if i == k || line_angle(&li.dir, &lk.dir) < 0.35 {
+                continue;
+            }
+            for (ci, ei) in [(li.a, li.b), (li.b, li.a)] {
+                for (ck, ek) in [(lk.a, lk.b), (lk.b, lk.a)] {
+                    if (ci - ck).norm() < 1e-6 {
+                        out.push(Corner {
+                            line: i,
+                            other: k,
+                            corner: ci,
+                            out: (ei - ci).normalize(),
+                            other_out: (ek - ck).normalize(),
+                            other_len: lk.len,
+                        });
+                    }
+                }
+            }
+        }
+    }
+    out
 }
 
 /// The ends of `lines`, each once.

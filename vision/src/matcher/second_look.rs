@@ -19,7 +19,7 @@
 //! another's corner shows nothing of its own (an L-bracket on a U-channel, seed 109).
 
 use super::image_fit::{SEARCH_PX, refine_in_image};
-use super::model::{Located, MatchParams, MatcherModel, Seg, eye_of, line_angle};
+use super::model::{Corner, Located, MatchParams, MatcherModel, Seg, eye_of};
 use super::occlusion::{MIN_IN_VIEW, Solid};
 use super::support::{model_lines_of, scene_lines_of, support};
 use super::table::hopelessly_sunk;
@@ -49,42 +49,6 @@ const FLAT_MIN_IMAGE_SUPPORT: f64 = super::table_look::MIN_IMAGE_SUPPORT;
 const MIN_IMAGE_SUPPORT_TO_REFINE: f64 = 0.6;
 /// Candidates verified per model.
 const CANDIDATES: usize = 8;
-
-/// Two model edges leaving one corner: `corner` and the unit directions out of it.
-pub(crate) struct Corner {
-    pub(crate) line: usize,
-    pub(crate) other: usize,
-    pub(crate) corner: Point3<f64>,
-    pub(crate) out: Vector3<f64>,
-    pub(crate) other_out: Vector3<f64>,
-    pub(crate) other_len: f64,
-}
-
-pub(crate) fn corners(model: &MatcherModel) -> Vec<Corner> {
-    let mut out = Vec::new();
-    for (i, li) in model.lines.iter().enumerate() {
-        for (k, lk) in model.lines.iter().enumerate() {
-            if i == k || line_angle(&li.dir, &lk.dir) < 0.35 {
-                continue;
-            }
-            for (ci, ei) in [(li.a, li.b), (li.b, li.a)] {
-                for (ck, ek) in [(lk.a, lk.b), (lk.b, lk.a)] {
-                    if (ci - ck).norm() < 1e-6 {
-                        out.push(Corner {
-                            line: i,
-                            other: k,
-                            corner: ci,
-                            out: (ei - ci).normalize(),
-                            other_out: (ek - ck).normalize(),
-                            other_len: lk.len,
-                        });
-                    }
-                }
-            }
-        }
-    }
-    out
-}
 
 /// Where the lines through `p0`-`p1` and `q0`-`q1` cross, as a parameter along the first.
 fn crossing(p0: &Point2<f64>, p1: &Point2<f64>, q0: &Point2<f64>, q1: &Point2<f64>) -> Option<(f64, Point2<f64>)> {
@@ -225,7 +189,7 @@ pub(crate) fn locate_refining(
         })
     };
     let hiding: Vec<&Solid> = solids.iter().collect();
-    let corners = corners(model);
+    let corners = &model.corner_edges;
     // The poses from each scene line that pass the image check, with their support in view.
     let from_line = |j: usize, s: &Seg| {
         let mut passed = Vec::new();
@@ -249,7 +213,7 @@ pub(crate) fn locate_refining(
             }
             // Out of the corner, the 3D line runs towards its far imaged end.
             let u_out = if t < 0.5 { s.dir } else { -s.dir };
-            for c in &corners {
+            for c in corners {
                 let ml = &model.lines[c.line];
                 if s.len > ml.len + 0.012 {
                     continue;

@@ -19,6 +19,9 @@ pub struct ImageEvidence<'a> {
     pub cam: &'a PinholeCamera,
     pub edges: &'a EdgeMap,
     pub lines: Vec<ImageLine>,
+    /// The image lines stereo did lift to 3D (from a front-end run; none otherwise): where the
+    /// lift went wrong, a part's outline is still seen in them ([`super::image_look`]).
+    pub(crate) lifted: std::sync::Arc<Vec<ImageLine>>,
     /// The edgels spread into an orientation mask, so that each sample is one look-up.
     mask: std::sync::Arc<EdgeMask>,
     /// The depths stereo gave the left image's matched edgels, by pixel (none without stereo).
@@ -48,7 +51,8 @@ const MIN_IMAGE_LINE_PX: f64 = 20.0;
 
 impl<'a> ImageEvidence<'a> {
     pub fn new(cam: &'a PinholeCamera, edges: &'a EdgeMap, lines: Vec<ImageLine>) -> ImageEvidence<'a> {
-        ImageEvidence { cam, edges, lines, mask: std::sync::Arc::new(EdgeMask::of(edges)), depths: None, right: None }
+        let mask = std::sync::Arc::new(EdgeMask::of(edges));
+        ImageEvidence { cam, edges, lines, lifted: Default::default(), mask, depths: None, right: None }
     }
 
     /// The first edgel within [`NEAR_PX`] across a line running along `dir` through (`x`, `y`)
@@ -73,6 +77,7 @@ impl<'a> ImageEvidence<'a> {
             cam: self.cam,
             edges: self.edges,
             lines,
+            lifted: self.lifted.clone(),
             mask: self.mask.clone(),
             depths: self.depths.clone(),
             right: self.right.clone(),
@@ -82,26 +87,21 @@ impl<'a> ImageEvidence<'a> {
     /// The evidence of one front-end run on the left camera `cam`.
     pub fn of(cam: &'a PinholeCamera, fe: &'a crate::front_end::FrontEnd) -> ImageEvidence<'a> {
         let lifted: std::collections::HashSet<u32> = fe.lines3d.iter().map(|l| l.line2).collect();
-        let lines = match &fe.rect {
-            None => Vec::new(),
-            Some(rect) => fe
-                .lines2d
-                .iter()
-                .enumerate()
-                .filter(|(i, l)| !lifted.contains(&(*i as u32)) && l.length() as f64 >= MIN_IMAGE_LINE_PX)
-                .map(|(_, l)| {
-                    let px = |p: [f32; 2]| {
-                        let (x, y) =
-                            rect.from_rectified(crate::front_end::rectify::Side::Left, p[0] as f64, p[1] as f64);
-                        nalgebra::Point2::new(x, y)
-                    };
-                    let (a, b) = (px(l.start), px(l.end));
-                    let normal = cam.ray_cam(a.x, a.y).cross(&cam.ray_cam(b.x, b.y)).normalize();
-                    ImageLine { a, b, normal }
-                })
-                .collect(),
-        };
+        let (mut lines, mut lifted_lines) = (Vec::new(), Vec::new());
+        if let Some(rect) = &fe.rect {
+            for (i, l) in fe.lines2d.iter().enumerate().filter(|(_, l)| l.length() as f64 >= MIN_IMAGE_LINE_PX) {
+                let px = |p: [f32; 2]| {
+                    let (x, y) = rect.from_rectified(crate::front_end::rectify::Side::Left, p[0] as f64, p[1] as f64);
+                    nalgebra::Point2::new(x, y)
+                };
+                let (a, b) = (px(l.start), px(l.end));
+                let normal = cam.ray_cam(a.x, a.y).cross(&cam.ray_cam(b.x, b.y)).normalize();
+                let to = if lifted.contains(&(i as u32)) { &mut lifted_lines } else { &mut lines };
+                to.push(ImageLine { a, b, normal });
+            }
+        }
         let mut ev = ImageEvidence::new(cam, &fe.left, lines);
+        ev.lifted = std::sync::Arc::new(lifted_lines);
         ev.depths = fe.rect.as_ref().map(|rect| std::sync::Arc::new(EdgelDepths::of(fe, rect)));
         ev
     }
@@ -288,6 +288,23 @@ pub struct Explained {
     segments: Vec<(Point2<f64>, Point2<f64>, Vector2<f64>)>,
 }
 
+/// Whether image point `q` on a line running along `dir` lies on one of `segments` (ends and unit
+/// direction) that runs along it.
+fn explained_by<'s>(
+    mut segments: impl Iterator<Item = &'s (Point2<f64>, Point2<f64>, Vector2<f64>)>,
+    q: &Point2<f64>,
+    dir: &Vector2<f64>,
+) -> bool {
+    let cos_along = ALONG_RAD.cos();
+    segments.any(|(a, b, d)| {
+        if d.dot(dir).abs() < cos_along {
+            return false;
+        }
+        let t = (q - a).dot(d).clamp(0.0, (b - a).norm());
+        (q - (a + d * t)).norm() <= EXPLAINED_PX
+    })
+}
+
 /// A candidate of a later look whose wireframe runs along located objects' edges for more than
 /// this share of its length is not admitted.
 pub const MAX_EXPLAINED: f64 = 0.5;
@@ -312,14 +329,7 @@ impl Explained {
 
     /// Whether image point `q` on a line running along `dir` lies on one of the edges.
     fn explains(&self, q: &Point2<f64>, dir: &Vector2<f64>) -> bool {
-        let cos_along = ALONG_RAD.cos();
-        self.segments.iter().any(|(a, b, d)| {
-            if d.dot(dir).abs() < cos_along {
-                return false;
-            }
-            let t = (q - a).dot(d).clamp(0.0, (b - a).norm());
-            (q - (a + d * t)).norm() <= EXPLAINED_PX
-        })
+        explained_by(self.segments.iter(), q, dir)
     }
 
     /// The share of image line `l` (by length) that runs along the edges.
@@ -329,8 +339,23 @@ impl Explained {
             return 0.0;
         }
         let (steps, dir) = ((len / STEP_PX) as usize, (l.b - l.a) / len);
-        let explained =
-            (1..steps).filter(|&k| self.explains(&(l.a + (l.b - l.a) * (k as f64 / steps as f64)), &dir)).count();
+        // Only edges that run along the line and come within reach of its box can explain a
+        // sample of it: picked once, not at every sample.
+        let (lo, hi) = (
+            l.a.coords.inf(&l.b.coords).add_scalar(-EXPLAINED_PX),
+            l.a.coords.sup(&l.b.coords).add_scalar(EXPLAINED_PX),
+        );
+        let near: Vec<&(Point2<f64>, Point2<f64>, Vector2<f64>)> = self
+            .segments
+            .iter()
+            .filter(|(a, b, _)| {
+                let (slo, shi) = (a.coords.inf(&b.coords), a.coords.sup(&b.coords));
+                slo.x <= hi.x && slo.y <= hi.y && shi.x >= lo.x && shi.y >= lo.y
+            })
+            .collect();
+        let explained = (1..steps)
+            .filter(|&k| explained_by(near.iter().copied(), &(l.a + (l.b - l.a) * (k as f64 / steps as f64)), &dir))
+            .count();
         explained as f64 / (steps - 1) as f64
     }
 
@@ -750,5 +775,44 @@ mod tests {
         assert!(explained.share(&bracket, &place(-0.005, 0.0), &cam) > 0.6);
         assert_eq!(explained.share(&block, &place(0.15, 0.1), &cam), 0.0);
         assert_eq!(explained.share(&channel, &channel_pose, &cam), 1.0);
+    }
+
+    /// The share of an image line along located edges, from the edges near its box, is the
+    /// share every edge gives sample by sample: random short edges and lines over a small image,
+    /// many of them near and along each other.
+    #[test]
+    fn a_lines_share_from_the_edges_near_it_is_the_share_from_all_of_them() {
+        let mut rng = crate::matcher::fixtures::Lcg(7);
+        let mut point = || Point2::new(100.0 + 60.0 * rng.next(), 100.0 + 60.0 * rng.next());
+        let segments: Vec<(Point2<f64>, Point2<f64>, Vector2<f64>)> = (0..60)
+            .map(|_| {
+                let (a, b) = (point(), point());
+                (a, b, (b - a).normalize())
+            })
+            .collect();
+        let explained = Explained { segments };
+        let (mut some, mut none) = (0, 0);
+        for k in 0..400 {
+            let a = point();
+            // Every other line runs along an edge, a pixel aside.
+            let b = if k % 2 == 0 {
+                let (ea, eb, _) = explained.segments[k % 60];
+                a + (eb - ea)
+            } else {
+                point()
+            };
+            let line = ImageLine { a, b, normal: nalgebra::Vector3::z() };
+            let len = (b - a).norm();
+            if len < 2.0 * STEP_PX {
+                continue;
+            }
+            let (steps, dir) = ((len / STEP_PX) as usize, (b - a) / len);
+            let every =
+                (1..steps).filter(|&s| explained.explains(&(a + (b - a) * (s as f64 / steps as f64)), &dir)).count();
+            let share = every as f64 / (steps - 1) as f64;
+            assert_eq!(explained.share_of_line(&line), share, "line {k}");
+            if share > 0.0 { some += 1 } else { none += 1 }
+        }
+        assert!(some > 50 && none > 50, "{some} lines partly explained, {none} not");
     }
 }
