@@ -185,7 +185,8 @@ pub(crate) fn half_turns(model: &MatcherModel) -> [Isometry3<f64>; 3] {
 /// ([`Light::fit`]); each report's faces are read with the others as solids that may hide them.
 /// The reports come polished ([`super::polish`]); a report is dropped only if its pose before
 /// the polish (`unpolished`, in `kept`'s order) fits no better, and turned from that pose.
-/// Returns which reports of the new `kept` were turned (to be polished in their turn).
+/// Returns which reports of the new `kept` were turned (to be polished in their turn), and the
+/// light, if one was fitted.
 ///
 /// Why the poses both sides of the polish: the faces of a reading a few degrees off lean from
 /// the light, and before the polish many are (the second look's corner poses rest on one or two
@@ -209,7 +210,7 @@ pub(crate) fn judge_by_shading(
     ev: &ImageEvidence,
     (max_support, turns): (f64, &TurnedCandidates),
     (kept, unpolished): (&mut Vec<super::model::Located>, &[Isometry3<f64>]),
-) -> Vec<bool> {
+) -> (Vec<bool>, Option<Light>) {
     let model_of = |name: &str| models.iter().find(|m| m.name == name);
     let solids = solids_of(models, kept);
     let shades_of = |i: usize, model: &MatcherModel, pose: &Isometry3<f64>| reading_shades(i, model, pose, ev, &solids);
@@ -219,7 +220,7 @@ pub(crate) fn judge_by_shading(
         .enumerate()
         .map(|(i, l)| model_of(&l.model).map(|m| shades_of(i, m, &l.cam_from_model)).unwrap_or_default())
         .collect();
-    let Some(light) = Light::fit(&per.concat()) else { return vec![false; kept.len()] };
+    let Some(light) = Light::fit(&per.concat()) else { return (vec![false; kept.len()], None) };
     // Each report judged on its own against the one light, in parallel: turned, dropped, or
     // left as it is.
     let verdicts: Vec<Verdict> = kept
@@ -279,7 +280,26 @@ pub(crate) fn judge_by_shading(
         })
         .unzip();
     *kept = judged;
-    turned
+    (turned, Some(light))
+}
+
+/// Whether report `i` of `kept` (the others solids that may hide it) shows `light` as the
+/// reports [`judge_by_shading`] let stand do: on `max_support` of its model's length matched
+/// or more, its model's albedo; on less, faces within [`REJECT_MISFIT`] of the light.
+pub(crate) fn fits_light(
+    models: &[MatcherModel],
+    ev: &ImageEvidence,
+    (light, max_support): (&Light, f64),
+    kept: &[super::model::Located],
+    i: usize,
+) -> bool {
+    let Some(model) = models.iter().find(|m| m.name == kept[i].model) else { return true };
+    let faces = reading_shades(i, model, &kept[i].cam_from_model, ev, &solids_of(models, kept));
+    if kept[i].support_fraction >= max_support {
+        light.albedo_factor(&faces).is_none_or(|f| (f - 1.0).abs() <= WELL_SUPPORTED_ALBEDO_OFF)
+    } else {
+        light.misfit(&faces).is_none_or(|m| m <= REJECT_MISFIT)
+    }
 }
 
 /// What the shading check makes of one report.
@@ -529,5 +549,24 @@ mod before_the_polish {
         let kept = judged(&truth);
         assert_eq!(names(&kept), ["block", "wedge", "hex_prism"]);
         assert_eq!(kept[1].1, tilted(12.0), "the wedge keeps its polished pose");
+
+        // A report found after the check: the wedge as it lies shows the check's light, tilted
+        // 12 deg it does not.
+        let report = |i: usize, pose: Isometry3<f64>| Located {
+            model: models[i].name.clone(),
+            cam_from_model: pose,
+            support: 0.1 * models[i].total_length,
+            support_fraction: 0.1,
+            scene_lines: Vec::new(),
+            image_support: 1.0,
+            grasps: Vec::new(),
+        };
+        let solids = solids_of(&models, &(0..3).map(|i| report(i, truth[i])).collect::<Vec<_>>());
+        let faces: Vec<FaceShade> =
+            (0..3).flat_map(|i| reading_shades(i, &models[i], &truth[i], &ev, &solids)).collect();
+        let light = Light::fit(&faces).expect("a light");
+        let with_wedge_at = |pose| [report(0, truth[0]), report(1, pose), report(2, truth[2])];
+        assert!(fits_light(&models, &ev, (&light, 0.3), &with_wedge_at(truth[1]), 1));
+        assert!(!fits_light(&models, &ev, (&light, 0.3), &with_wedge_at(tilted(12.0)), 1));
     }
 }
