@@ -155,6 +155,64 @@ fn flat_corners<'c>(model: &'c MatcherModel, up: &Vector3<f64>) -> Vec<FlatCorne
     out
 }
 
+/// A model's flat corners with an index by what the other edge does: lying level (by the
+/// angle they make on the table), standing upright (up, down), or neither; so that an image
+/// corner is tried only against those that may fit it (most of the image look's time went on
+/// trying every corner against every image corner).
+struct FlatCorners<'c> {
+    all: Vec<FlatCorner<'c>>,
+    /// Level ones by the angle from the level edge to the other, ascending.
+    level: Vec<(f64, usize)>,
+    upright: [Vec<usize>; 2],
+    other: Vec<usize>,
+}
+
+impl<'c> FlatCorners<'c> {
+    fn new(all: Vec<FlatCorner<'c>>) -> FlatCorners<'c> {
+        let (mut level, mut upright, mut other) = (Vec::new(), [Vec::new(), Vec::new()], Vec::new());
+        for (i, f) in all.iter().enumerate() {
+            match (f.level_turn, f.upright) {
+                (Some((cos, sin)), _) => level.push((sin.atan2(cos), i)),
+                (None, Some(sign)) => upright[usize::from(sign < 0.0)].push(i),
+                (None, None) => other.push(i),
+            }
+        }
+        level.sort_by(|a, b| a.0.total_cmp(&b.0));
+        FlatCorners { all, level, upright, other }
+    }
+
+    /// The corners that may fit `edge`: those whose level angle lies within [`LEVEL_TURN_RAD`]
+    /// of the image corner's (all of them where it has none), the upright ones that stand the
+    /// way its other line runs, and those with neither.
+    fn for_edge<'a>(&'a self, edge: &LevelEdge) -> impl Iterator<Item = &'a FlatCorner<'c>> {
+        use std::f64::consts::{PI, TAU};
+        let (first, second) = match edge.level_turn {
+            None => (&self.level[..], &self.level[..0]),
+            Some((cos, sin)) => {
+                // Widened by a hair: `LevelEdge::pose` holds them to the tolerance exactly.
+                let (at, reach) = (sin.atan2(cos), LEVEL_TURN_RAD + 1e-9);
+                let (lo, hi) = (at - reach, at + reach);
+                if lo < -PI {
+                    (self.between(lo + TAU, PI), self.between(-PI, hi))
+                } else if hi > PI {
+                    (self.between(lo, PI), self.between(-PI, hi - TAU))
+                } else {
+                    (self.between(lo, hi), &self.level[..0])
+                }
+            }
+        };
+        let upright = edge.upright.map_or(&[][..], |sign| &self.upright[usize::from(sign < 0.0)][..]);
+        let level = first.iter().chain(second).map(|&(_, i)| i);
+        level.chain(upright.iter().copied()).chain(self.other.iter().copied()).map(|i| &self.all[i])
+    }
+
+    /// The level corners whose angle lies within `lo`..=`hi`.
+    fn between(&self, lo: f64, hi: f64) -> &[(f64, usize)] {
+        let (from, to) = (self.level.partition_point(|(a, _)| *a < lo), self.level.partition_point(|(a, _)| *a <= hi));
+        &self.level[from..to.max(from)]
+    }
+}
+
 /// An image corner with one of its lines taken for a level model edge: the ray through the
 /// corner, and the level direction in that line's plane that images along it, out of the corner.
 struct LevelEdge<'i> {
@@ -292,12 +350,12 @@ pub(crate) fn locate(
         super::image_fit::View { ev: &right.ev, cam_from_left: right.right_from_cam },
     ];
     let up = Vector3::from(table.up);
-    let flat = flat_corners(model, &up);
+    let flat = FlatCorners::new(flat_corners(model, &up));
     let mut best: Option<(f64, Isometry3<f64>)> = None;
     let mut tried: Vec<Isometry3<f64>> = Vec::new();
     let edges = image_corners.iter().flat_map(|ic| (0..2).filter_map(move |first| LevelEdge::new(ic, first, &up, ev)));
     for edge in edges {
-        for f in &flat {
+        for f in flat.for_edge(&edge) {
             let Some(start) = edge.pose(f, table, ev) else { continue };
             let eye = eye_of(&start);
             if !model.may_be_seen(f.corner.line, &eye) || !model.may_be_seen(f.corner.other, &eye) {
@@ -411,6 +469,77 @@ mod tests {
         assert!(crate::matcher::fixtures::on_its_lines(&s.block, &found.cam_from_model, &s.truth, 5e-4));
         assert_eq!(found.support, 0.0);
         assert!(found.image_support >= MIN_IMAGE_SUPPORT);
+    }
+
+    /// The corners tried against an image corner are exactly those whose level angle and
+    /// upright edge the image corner allows (the tests `LevelEdge::pose` makes first), for
+    /// models lying on every face, at image corners of every angle and either upright way.
+    #[test]
+    fn each_image_corner_is_tried_against_the_corners_that_may_fit_it() {
+        let up = Vector3::new(0.1, -0.6, -0.79).normalize();
+        let ic = ImageCorner { at: Point2::origin(), far: [Point2::origin(); 2], normals: [Vector3::x(); 2] };
+        for name in ["widget", "wedge", "hex_prism", "u_channel"] {
+            let m = model(name);
+            let flat = FlatCorners::new(flat_corners(&m, &up));
+            for k in 0..64 {
+                let angle = -std::f64::consts::PI + k as f64 * 0.1;
+                let turn = Some((angle.cos(), angle.sin()));
+                for (level_turn, upright) in [(turn, None), (None, Some(1.0)), (turn, Some(-1.0))] {
+                    let edge =
+                        LevelEdge { ic: &ic, first: 0, ray: Vector3::z(), dir: Vector3::x(), level_turn, upright };
+                    let allowed = |f: &FlatCorner| {
+                        let level = match (f.level_turn, edge.level_turn) {
+                            (Some((c, s)), Some((ci, si))) => c * ci + s * si >= LEVEL_TURN_RAD.cos(),
+                            _ => true,
+                        };
+                        level && (f.upright.is_none() || f.upright == edge.upright)
+                    };
+                    let key = |f: &FlatCorner| (f.corner.line, f.corner.other, f.height.to_bits(), f.out.x.to_bits());
+                    let mut tried: Vec<_> = flat.for_edge(&edge).filter(|f| allowed(f)).map(key).collect();
+                    let mut want: Vec<_> = flat.all.iter().filter(|f| allowed(f)).map(key).collect();
+                    tried.sort();
+                    want.sort();
+                    assert_eq!(tried, want, "{name} at {angle:.2}");
+                }
+            }
+        }
+    }
+
+    /// Level angles either side of a half turn are found across it.
+    #[test]
+    fn level_angles_near_a_half_turn_are_found_across_it() {
+        use std::f64::consts::PI;
+        let corner = Corner {
+            line: 0,
+            other: 1,
+            corner: Point3::origin(),
+            out: Vector3::x(),
+            other_out: Vector3::y(),
+            other_len: 0.01,
+        };
+        let at = |angle: f64| FlatCorner {
+            corner: &corner,
+            lay: Rotation3::identity(),
+            out: Vector3::x(),
+            other: Vector3::y(),
+            out_len: 0.01,
+            height: angle,
+            level_turn: Some((angle.cos(), angle.sin())),
+            upright: None,
+        };
+        let flat = FlatCorners::new([-3.1, -2.0, 0.0, 3.05].map(at).into());
+        let ic = ImageCorner { at: Point2::origin(), far: [Point2::origin(); 2], normals: [Vector3::x(); 2] };
+        let found = |angle: f64| {
+            let level_turn = Some((angle.cos(), angle.sin()));
+            let edge = LevelEdge { ic: &ic, first: 0, ray: Vector3::z(), dir: Vector3::x(), level_turn, upright: None };
+            let mut heights: Vec<f64> = flat.for_edge(&edge).map(|f| f.height).collect();
+            heights.sort_by(f64::total_cmp);
+            heights
+        };
+        assert_eq!(found(PI - 0.01), [-3.1, 3.05]);
+        assert_eq!(found(-PI + 0.01), [-3.1, 3.05]);
+        assert_eq!(found(-2.1), [-2.0]);
+        assert_eq!(found(1.0), Vec::<f64>::new());
     }
 
     /// The right image bears out no pose the left's corners give when it shows the block 1 cm
