@@ -1,7 +1,7 @@
 //! What the matcher's unit tests set up alike.
 
 use super::model::MatcherModel;
-use nalgebra::{Isometry3, Vector3};
+use nalgebra::{Isometry3, Point3, Vector3};
 
 pub(crate) use crate::front_end::rectify::tests::camera_at;
 
@@ -9,6 +9,33 @@ pub(crate) use crate::front_end::rectify::tests::camera_at;
 pub(crate) fn model(name: &str) -> MatcherModel {
     let lib = mesh::Library::load_default().unwrap();
     MatcherModel::from_model(lib.get(name).unwrap_or_else(|| panic!("no model `{name}` in the library")))
+}
+
+/// A 512 x 512 image of `objects` (models at poses in the `cam` frame) lit by `light`
+/// against a uniform `background`, by casting a ray through each pixel centre:
+/// no other code of the crate's draws it.
+pub(crate) fn render(
+    cam: &mesh::PinholeCamera,
+    objects: &[(&MatcherModel, Isometry3<f64>)],
+    light: &super::light::Light,
+    background: u8,
+) -> crate::image::GreyImage {
+    let faces: Vec<([Point3<f64>; 3], f64)> =
+        objects.iter().flat_map(|(m, pose)| m.triangles.iter().map(move |t| (t.map(|p| pose * p), m.albedo))).collect();
+    let mut pixels = vec![background; 512 * 512];
+    for (i, px) in pixels.iter_mut().enumerate() {
+        let d = cam.ray_cam((i % 512) as f64, (i / 512) as f64);
+        let nearest = faces
+            .iter()
+            .filter_map(|(t, albedo)| Some((mesh::trimesh::ray_triangle(&Point3::origin(), &d, t)?, t, albedo)))
+            .filter(|(s, _, _)| *s > 0.0)
+            .min_by(|a, b| a.0.total_cmp(&b.0));
+        if let Some((_, t, albedo)) = nearest {
+            let n = (t[1] - t[0]).cross(&(t[2] - t[0])).normalize();
+            *px = (albedo * light.predict(&n)).round().clamp(0.0, 255.0) as u8;
+        }
+    }
+    crate::image::GreyImage::new(512, 512, pixels).unwrap()
 }
 
 /// A verged pair of 512 x 512 cameras 0.2 m apart, 0.7 m from the origin they look at, z up.

@@ -27,12 +27,13 @@
 //! there: 0.6 located 98.30 / 92.13 / 95.54% with 5 / 14 / 2 false reports, 0.5 98.33 / 92.46 /
 //! 95.61% with the same (both with corners of 4 px).
 
+use super::contrast::Shown;
 use super::model::{Corner, Located, MatchParams, MatcherModel, Seg, Table, eye_of};
 use super::occlusion::{MIN_IN_VIEW, Solid};
 use super::support::support;
 use super::table::rests_flat;
 use super::table_look::{REST_M, laid_flat};
-use super::verify::{Explained, ImageEvidence, MAX_EXPLAINED, image_support_at_least, image_support_unhidden};
+use super::verify::{Explained, ImageEvidence, MAX_EXPLAINED, image_support_shown, image_support_shown_at_least};
 use nalgebra::{Isometry3, Matrix3, Point2, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
 /// Two image lines' ends this close (pixels) meet at a corner, which lies where the lines
@@ -58,6 +59,9 @@ const LEVEL_TURN_RAD: f64 = 0.15;
 /// The corner's other model edge, turned, must lie this near the plane of the other image line
 /// (the cosine of its angle to the plane's normal) before its image is worked out.
 const IN_PLANE: f64 = 0.1;
+/// Of a part's wireframe in view, at least this share must be edges the light lets show
+/// ([`super::contrast`]) for the rest to judge it.
+const MIN_SHOWN: f64 = 0.5;
 /// An image line another object's edges explain for more than this share is no part's corner.
 const MAX_LINE_EXPLAINED: f64 = 0.5;
 
@@ -331,24 +335,24 @@ impl<'a> LocatedSolids<'a> {
 
 /// At most one object of `model` lying flat on the table, from `image_corners`, on the lines
 /// not `claimed`, with the `located` objects' solids (in each camera's frame) hiding what lies
-/// behind them and the `explained` image edges counting for none of it. Nothing without the
+/// behind them and the `explained` image edges counting for none of it, judged on the edges
+/// the light lets show where `shown` says which ([`super::contrast`]); and the starts given up
+/// for want of edgels, to be judged again by the light ([`rejudge`]). Nothing without the
 /// table or the right image.
 pub(crate) fn locate(
     model: &MatcherModel,
-    scene: &[Seg],
-    claimed: &[bool],
+    (scene, claimed): (&[Seg], &[bool]),
     p: &MatchParams,
     ev: &ImageEvidence,
     (image_corners, located, explained): (&[ImageCorner], &LocatedSolids, &Explained),
-) -> Option<Located> {
-    let (table, right) = (p.table.as_ref()?, ev.right.as_deref()?);
+    shown: Option<&Shown>,
+) -> (Option<Located>, Vec<Isometry3<f64>>) {
+    let mut faint = Vec::new();
+    let (Some(table), Some(right)) = (p.table.as_ref(), ev.right.as_deref()) else { return (None, faint) };
     if image_corners.is_empty() {
-        return None;
+        return (None, faint);
     }
-    let views = [
-        super::image_fit::View { ev, cam_from_left: Isometry3::identity() },
-        super::image_fit::View { ev: &right.ev, cam_from_left: right.right_from_cam },
-    ];
+    let look = Look { model, table, views: views_of(ev, right), located, explained, shown };
     let up = Vector3::from(table.up);
     let flat = FlatCorners::new(flat_corners(model, &up));
     let mut best: Option<(f64, Isometry3<f64>)> = None;
@@ -361,37 +365,114 @@ pub(crate) fn locate(
             if !model.may_be_seen(f.corner.line, &eye) || !model.may_be_seen(f.corner.other, &eye) {
                 continue;
             }
-            // Both images must show enough of the start before it is fitted to them (the fit is
-            // dear, and a start from where other edges meet rarely shows in both).
-            if image_support_at_least(model, &start, ev, MIN_IMAGE_SUPPORT_TO_REFINE).is_none() {
-                continue;
-            }
-            let solids = located.get();
-            let in_right = views[1].cam_from_left * start;
-            let own = Solid::new(model, &in_right);
-            let hiding: Vec<&Solid> = solids[1].iter().chain([&own]).collect();
-            if image_support_unhidden(model, &in_right, views[1].ev, &hiding).0 < MIN_IMAGE_SUPPORT_TO_REFINE {
-                continue;
-            }
-            let others: Vec<Vec<&Solid>> = solids.iter().map(|s| s.iter().collect()).collect();
-            let pose = laid_flat(table, model, &super::polish::polished(model, &start, &others, &views));
-            if tried.iter().any(|t| super::table_look::same_place(t, &pose)) {
-                continue;
-            }
-            tried.push(pose);
-            if !rests_flat(table, model, &pose, REST_M) {
-                continue;
-            }
-            let Some(seen) = seen_in_both(model, &pose, &views, located.get()) else { continue };
-            if explained.share(model, &pose, ev.cam) <= MAX_EXPLAINED && best.is_none_or(|(b, _)| seen > b) {
-                best = Some((seen, pose));
+            match look.judge(&start, &mut tried) {
+                Judged::Seen(seen, pose) if best.is_none_or(|(b, _)| seen > b) => best = Some((seen, pose)),
+                Judged::Faint => faint.push(start),
+                _ => {}
             }
         }
     }
-    let (seen, pose) = best?;
+    (best.map(|best| located_at(model, (scene, claimed), p, best)), faint)
+}
+
+/// The image look's `faint` starts of `model` (those [`locate`] gave up on for want of
+/// edgels) judged again on the edges the light lets show: only those with an edge it leaves
+/// dim, as the others would fare as they did.
+pub(crate) fn rejudge(
+    model: &MatcherModel,
+    (scene, claimed): (&[Seg], &[bool]),
+    p: &MatchParams,
+    ev: &ImageEvidence,
+    (faint, located, explained): (&[Isometry3<f64>], &LocatedSolids, &Explained),
+    shown: &Shown,
+) -> Option<Located> {
+    let (table, right) = (p.table.as_ref()?, ev.right.as_deref()?);
+    let look = Look { model, table, views: views_of(ev, right), located, explained, shown: Some(shown) };
+    let mut best: Option<(f64, Isometry3<f64>)> = None;
+    let mut tried: Vec<Isometry3<f64>> = Vec::new();
+    for start in faint.iter().filter(|start| shown.dim_lines(model, start).contains(&true)) {
+        if let Judged::Seen(seen, pose) = look.judge(start, &mut tried)
+            && best.is_none_or(|(b, _)| seen > b)
+        {
+            best = Some((seen, pose));
+        }
+    }
+    best.map(|best| located_at(model, (scene, claimed), p, best))
+}
+
+fn views_of<'a>(ev: &'a ImageEvidence<'a>, right: &'a super::verify::RightImage<'a>) -> [View<'a>; 2] {
+    [View { ev, cam_from_left: Isometry3::identity() }, View { ev: &right.ev, cam_from_left: right.right_from_cam }]
+}
+
+use super::image_fit::View;
+
+/// What the image look judges a start by.
+struct Look<'l> {
+    model: &'l MatcherModel,
+    table: &'l Table,
+    views: [View<'l>; 2],
+    located: &'l LocatedSolids<'l>,
+    explained: &'l Explained,
+    shown: Option<&'l Shown>,
+}
+
+/// What became of a start.
+enum Judged {
+    /// Fitted, it runs along edgels in both images for this share of what is in view.
+    Seen(f64, Isometry3<f64>),
+    /// Too few edgels along it in an image, before or after the fit.
+    Faint,
+    /// Fitted where another start was, off the table, or on edges others explain.
+    Not,
+}
+
+impl Look<'_> {
+    /// `start` checked on both images, fitted to them, laid flat and checked again (`tried`
+    /// holds the poses fitted so far, each judged once).
+    fn judge(&self, start: &Isometry3<f64>, tried: &mut Vec<Isometry3<f64>>) -> Judged {
+        let (model, [left, right]) = (self.model, &self.views);
+        // Both images must show enough of the start before it is fitted to them (the fit is
+        // dear, and a start from where other edges meet rarely shows in both).
+        let dim = self.shown.map(|s| s.dim_lines(model, start)).unwrap_or_default();
+        if image_support_shown_at_least(model, start, left.ev, MIN_IMAGE_SUPPORT_TO_REFINE, &dim).is_none() {
+            return Judged::Faint;
+        }
+        let solids = self.located.get();
+        let in_right = right.cam_from_left * start;
+        let own = Solid::new(model, &in_right);
+        let hiding: Vec<&Solid> = solids[1].iter().chain([&own]).collect();
+        if image_support_shown(model, &in_right, right.ev, &hiding, &dim).0 < MIN_IMAGE_SUPPORT_TO_REFINE {
+            return Judged::Faint;
+        }
+        let others: Vec<Vec<&Solid>> = solids.iter().map(|s| s.iter().collect()).collect();
+        let pose = laid_flat(self.table, model, &super::polish::polished(model, start, &others, &self.views));
+        if tried.iter().any(|t| super::table_look::same_place(t, &pose)) {
+            return Judged::Not;
+        }
+        tried.push(pose);
+        if !rests_flat(self.table, model, &pose, REST_M) {
+            return Judged::Not;
+        }
+        let dim = self.shown.map(|s| s.dim_lines(model, &pose)).unwrap_or_default();
+        let Some(seen) = seen_in_both(model, &pose, &self.views, solids, &dim) else { return Judged::Faint };
+        if self.explained.share(model, &pose, left.ev.cam) > MAX_EXPLAINED {
+            return Judged::Not;
+        }
+        Judged::Seen(seen, pose)
+    }
+}
+
+/// The report of `model` at `pose`, seen along edgels for `seen` of what is in view, with the
+/// 3D lines not `claimed` that it lies along.
+fn located_at(
+    model: &MatcherModel,
+    (scene, claimed): (&[Seg], &[bool]),
+    p: &MatchParams,
+    (seen, pose): (f64, Isometry3<f64>),
+) -> Located {
     let free: Vec<bool> = claimed.iter().map(|c| !c).collect();
     let (score, pairs) = support(model, &pose, scene, &free, p);
-    Some(super::ranking::Candidate { pose, score, pairs, image_support: seen }.located(model, seen))
+    super::ranking::Candidate { pose, score, pairs, image_support: seen }.located(model, seen)
 }
 
 /// The lesser of the shares of the part in view that run along edgels in the two images, if
@@ -399,16 +480,17 @@ pub(crate) fn locate(
 fn seen_in_both(
     model: &MatcherModel,
     pose: &Isometry3<f64>,
-    views: &[super::image_fit::View; 2],
+    views: &[View; 2],
     solids: &[Vec<Solid>; 2],
+    dim: &[bool],
 ) -> Option<f64> {
     let mut least = f64::MAX;
     for (v, in_view) in views.iter().zip(solids) {
         let at = v.cam_from_left * pose;
         let own = Solid::new(model, &at);
         let hiding: Vec<&Solid> = in_view.iter().chain([&own]).collect();
-        let (seen, share) = image_support_unhidden(model, &at, v.ev, &hiding);
-        if seen < MIN_IMAGE_SUPPORT || share < MIN_IN_VIEW {
+        let (seen, share, bright) = image_support_shown(model, &at, v.ev, &hiding, dim);
+        if seen < MIN_IMAGE_SUPPORT || share < MIN_IN_VIEW || bright < MIN_SHOWN {
             return None;
         }
         least = least.min(seen);
@@ -419,6 +501,7 @@ fn seen_in_both(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::front_end::canny::EdgeMap;
     use crate::matcher::fixtures::{model, verged_pair};
     use crate::matcher::verify::{RightImage, drawn::model_edges};
 
@@ -457,7 +540,7 @@ mod tests {
         let corners = image_corners(&ev, &explained);
         assert!(!corners.is_empty(), "the block's outline meets at corners");
         let located = LocatedSolids::new(&[], &[], &ev);
-        locate(&s.block, &[], &[], &p, &ev, (&corners, &located, &explained))
+        locate(&s.block, (&[], &[]), &p, &ev, (&corners, &located, &explained), None).0
     }
 
     /// Found from the image corners alone, the block comes out where it lies, within a fraction
@@ -469,6 +552,72 @@ mod tests {
         assert!(crate::matcher::fixtures::on_its_lines(&s.block, &found.cam_from_model, &s.truth, 5e-4));
         assert_eq!(found.support, 0.0);
         assert!(found.image_support >= MIN_IMAGE_SUPPORT);
+    }
+
+    /// A light from behind the block and above, the one that [`side_lit`] draws by.
+    fn light_from_behind(s: &Scene) -> super::super::light::Light {
+        let towards = s.cams.0.cam_from_world().rotation * Vector3::new(0.2, 1.0, 1.0).normalize();
+        super::super::light::Light { ambient: 0.2 * 255.0, towards_light: towards * 0.8 * 255.0 }
+    }
+
+    /// Both images of `s`'s block drawn by ray casting under [`light_from_behind`], on a table
+    /// of the grey the light gives its camera-facing sides (which it leaves in shadow): Canny's
+    /// edgels in each, the left image's lines along the block's edges that its edgels show,
+    /// and the table's grey.
+    fn side_lit(s: &Scene) -> (EdgeMap, EdgeMap, Vec<super::super::verify::ImageLine>, f64) {
+        use crate::front_end::canny::{CannyParams, canny};
+        let (left, right) = &s.cams;
+        let right_from_cam = right.cam_from_world() * left.world_from_cam;
+        let light = light_from_behind(s);
+        let table_grey = (s.block.albedo * light.ambient).round();
+        let draw = |cam: &mesh::PinholeCamera, from_left: Isometry3<f64>| {
+            let l = super::super::light::Light { towards_light: from_left.rotation * light.towards_light, ..light };
+            let image = crate::matcher::fixtures::render(cam, &[(&s.block, from_left * s.truth)], &l, table_grey as u8);
+            canny(&image, &CannyParams::default())
+        };
+        let (left_edges, right_edges) = (draw(left, Isometry3::identity()), draw(right, right_from_cam));
+        let shows = |l: &super::super::verify::ImageLine| {
+            let ev = ImageEvidence::new(left, &left_edges, Vec::new());
+            let dir = (l.b - l.a).normalize();
+            let samples = 20;
+            let seen = (1..samples)
+                .filter(|k| {
+                    let q = l.a + (l.b - l.a) * (*k as f64 / samples as f64);
+                    ev.edgel_near(q.x, q.y, dir).is_some()
+                })
+                .count();
+            seen * 5 >= (samples - 1) * 4
+        };
+        let lines = model_edges(&s.block, &s.truth, left).1.into_iter().filter(shows).collect();
+        (left_edges, right_edges, lines, table_grey)
+    }
+
+    /// Under a light that leaves its camera-facing sides the table's grey, a block lying flat
+    /// shows its top's outline alone. Held to all of its outline the image look gives it up
+    /// for want of edgels; judged again on the edges the light lets show, it is found where it
+    /// lies.
+    #[test]
+    fn a_part_whose_sides_show_the_tables_grey_is_found_on_the_edges_the_light_lets_show() {
+        let s = scene();
+        let (left_edges, right_edges, lines, table_grey) = side_lit(&s);
+        let (left, right) = &s.cams;
+        let right_from_cam = right.cam_from_world() * left.world_from_cam;
+        let shown = Shown { light: light_from_behind(&s), table_grey };
+        let dim = shown.dim_lines(&s.block, &s.truth);
+        let facing = (0..s.block.lines.len()).filter(|k| s.block.faces_camera(*k, &s.truth)).count();
+        assert!(lines.len() < facing, "{} of the block's {facing} edges show", lines.len());
+        assert_eq!(dim.iter().filter(|d| **d).count(), facing - lines.len(), "the dim edges are those not shown");
+        let ev = ImageEvidence::new(left, &left_edges, lines)
+            .with_right(RightImage { ev: ImageEvidence::new(right, &right_edges, Vec::new()), right_from_cam });
+        let p = MatchParams { table: Some(s.table), ..MatchParams::default() };
+        let explained = Explained::of(std::iter::empty(), left);
+        let corners = image_corners(&ev, &explained);
+        let located = LocatedSolids::new(&[], &[], &ev);
+        let (found, faint) = locate(&s.block, (&[], &[]), &p, &ev, (&corners, &located, &explained), None);
+        assert!(found.is_none(), "held to its whole outline");
+        assert!(!faint.is_empty());
+        let found = rejudge(&s.block, (&[], &[]), &p, &ev, (&faint, &located, &explained), &shown).expect("the block");
+        assert!(crate::matcher::fixtures::on_its_lines(&s.block, &found.cam_from_model, &s.truth, 5e-4));
     }
 
     /// The corners tried against an image corner are exactly those whose level angle and

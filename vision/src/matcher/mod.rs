@@ -41,6 +41,7 @@
 //! - [`turnover`]: a part read turned over, turned back where the edgels' depths or the image say so.
 //! - [`light`]: the scene's light as faces' grey levels show it.
 //! - [`shading`]: the grey levels of a reading's faces, read off the edgels beside its edges.
+//! - [`contrast`]: which of a reading's edges the light lets the image show.
 //! - [`table`]: the table the parts rest on; readings through it are refused.
 //! - [`table_look`]: parts lying flat on the table on too few 3D lines for the first look.
 //! - [`image_look`]: parts lying flat on the table on no 3D line, from an image corner and both images.
@@ -50,6 +51,7 @@
 //! The matcher depends on the front end's output types only ([`crate::front_end`]), never the
 //! other way round; within it, [`model`] is what the others share and imports none of them.
 
+pub mod contrast;
 pub mod depths;
 pub mod hypotheses;
 pub mod image_fit;

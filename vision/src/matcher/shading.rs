@@ -103,7 +103,7 @@ pub fn face_shades(
 
 /// The grey level on side `into` (an image direction) of the edgel that runs along `dir` near
 /// image point `q`, if one does.
-fn grey_beside(ev: &ImageEvidence, q: Point2, dir: Vector2<f64>, into: Vector2<f64>) -> Option<f64> {
+pub(crate) fn grey_beside(ev: &ImageEvidence, q: Point2, dir: Vector2<f64>, into: Vector2<f64>) -> Option<f64> {
     let e = ev.edgel_near(q.x, q.y, dir)?;
     let gradient = Vector2::new((e.orientation as f64).cos(), (e.orientation as f64).sin());
     // sides[1] lies along the gradient (the bright side), sides[0] against it.
@@ -373,41 +373,13 @@ fn turned_candidate(
 mod tests {
     pub(super) use super::*;
     use crate::front_end::canny::{CannyParams, canny};
+    pub(super) use crate::matcher::fixtures::render;
     use crate::matcher::fixtures::{camera_at, model};
     use nalgebra::{Point3, UnitQuaternion, Vector3};
 
     /// Grey levels per unit albedo of the test scenes' light: a face of normal `n` (`cam`).
     pub(super) fn truth_light() -> Light {
         Light { ambient: 0.25 * 255.0, towards_light: Vector3::new(0.5, -0.6, -0.6).normalize() * 0.75 * 255.0 }
-    }
-
-    /// A 512 x 512 image of `objects` (models at poses in the `cam` frame) lit by `light`
-    /// against a uniform `background`, by casting a ray through each pixel centre:
-    /// no other code of the crate's draws it.
-    pub(super) fn render(
-        cam: &mesh::PinholeCamera,
-        objects: &[(&MatcherModel, Isometry3<f64>)],
-        light: &Light,
-        background: u8,
-    ) -> crate::image::GreyImage {
-        let faces: Vec<([Point3<f64>; 3], f64)> = objects
-            .iter()
-            .flat_map(|(m, pose)| m.triangles.iter().map(move |t| (t.map(|p| pose * p), m.albedo)))
-            .collect();
-        let mut pixels = vec![background; 512 * 512];
-        for (i, px) in pixels.iter_mut().enumerate() {
-            let d = cam.ray_cam((i % 512) as f64, (i / 512) as f64);
-            let nearest = faces
-                .iter()
-                .filter_map(|(t, albedo)| Some((mesh::trimesh::ray_triangle(&Point3::origin(), &d, t)?, t, albedo)))
-                .filter(|(s, _, _)| *s > 0.0)
-                .min_by(|a, b| a.0.total_cmp(&b.0));
-            if let Some((_, t, albedo)) = nearest {
-                let n = (t[1] - t[0]).cross(&(t[2] - t[0])).normalize();
-                *px = (albedo * light.predict(&n)).round().clamp(0.0, 255.0) as u8;
-            }
-        }
-        crate::image::GreyImage::new(512, 512, pixels).unwrap()
     }
 
     pub(super) fn scene() -> (mesh::PinholeCamera, Vec<(MatcherModel, Isometry3<f64>)>) {

@@ -143,7 +143,7 @@ pub fn depth_agreement(
 ) -> Option<(f64, f64)> {
     let depths = ev.depths.as_ref()?;
     let (mut agree, mut disagree) = (0.0, 0.0);
-    for ([a3, b3], [a, b]) in facing_lines(model, pose, ev.cam) {
+    for (_, [a3, b3], [a, b]) in facing_lines(model, pose, ev.cam) {
         let len = (b - a).norm();
         if len < 2.0 * STEP_PX {
             continue;
@@ -177,17 +177,17 @@ const NEAR_PX: f64 = 1.5;
 /// ...whose edge runs within this angle (radians) of the projected line counts as evidence.
 pub(crate) const ALONG_RAD: f64 = 0.35;
 
-/// Each line of `model` that `pose` turns towards the camera, with its ends in `cam` and their
+/// Each line of `model` that `pose` turns towards the camera, its index, with its ends in `cam` and their
 /// image points (lines with an end behind the camera are left out).
 fn facing_lines<'m>(
     model: &'m MatcherModel,
     pose: &'m Isometry3<f64>,
     cam: &'m PinholeCamera,
-) -> impl Iterator<Item = ([nalgebra::Point3<f64>; 2], [Point2<f64>; 2])> + 'm {
+) -> impl Iterator<Item = (usize, [nalgebra::Point3<f64>; 2], [Point2<f64>; 2])> + 'm {
     let eye = super::model::eye_of(pose);
-    model.lines.iter().enumerate().filter(move |(k, _)| model.faces_eye(*k, &eye)).filter_map(move |(_, line)| {
+    model.lines.iter().enumerate().filter(move |(k, _)| model.faces_eye(*k, &eye)).filter_map(move |(k, line)| {
         let (a3, b3) = (pose * line.a, pose * line.b);
-        Some(([a3, b3], [cam.project_cam(&a3)?, cam.project_cam(&b3)?]))
+        Some((k, [a3, b3], [cam.project_cam(&a3)?, cam.project_cam(&b3)?]))
     })
 }
 
@@ -201,7 +201,7 @@ pub fn image_support(model: &MatcherModel, pose: &Isometry3<f64>, ev: &ImageEvid
 /// what the image should show of the model at `pose`.
 pub fn facing_length_px(model: &MatcherModel, pose: &Isometry3<f64>, cam: &PinholeCamera) -> f64 {
     facing_lines(model, pose, cam)
-        .map(|(_, [a, b])| (b - a).norm())
+        .map(|(_, _, [a, b])| (b - a).norm())
         .filter(|len| *len >= 2.0 * STEP_PX)
         .map(|len| STEP_PX * ((len / STEP_PX) as usize - 1) as f64)
         .sum()
@@ -215,11 +215,22 @@ pub fn image_support_at_least(
     ev: &ImageEvidence,
     min: f64,
 ) -> Option<f64> {
+    image_support_shown_at_least(model, pose, ev, min, &[])
+}
+
+/// [`image_support_at_least`] without the lines `dim` marks (as [`image_support_shown`]).
+pub fn image_support_shown_at_least(
+    model: &MatcherModel,
+    pose: &Isometry3<f64>,
+    ev: &ImageEvidence,
+    min: f64,
+    dim: &[bool],
+) -> Option<f64> {
     let mut segments = Vec::with_capacity(model.lines.len());
     let mut all = 0.0;
-    for (_, [a, b]) in facing_lines(model, pose, ev.cam) {
+    for (k, _, [a, b]) in facing_lines(model, pose, ev.cam) {
         let len = (b - a).norm();
-        if len < 2.0 * STEP_PX {
+        if len < 2.0 * STEP_PX || dim.get(k).copied().unwrap_or(false) {
             continue;
         }
         let steps = (len / STEP_PX) as usize;
@@ -256,28 +267,48 @@ pub fn image_support_unhidden(
     ev: &ImageEvidence,
     solids: &[&super::occlusion::Solid],
 ) -> (f64, f64) {
-    let (mut seen, mut unhidden, mut all) = (0.0, 0.0, 0.0);
-    for ([a3, b3], [a, b]) in facing_lines(model, pose, ev.cam) {
+    let (seen, unhidden, _) = image_support_shown(model, pose, ev, solids, &[]);
+    (seen, unhidden)
+}
+
+/// [`image_support_unhidden`] without the lines `dim` marks (edges the light leaves too faint
+/// to show, [`super::contrast::Shown::dim_lines`]; none past its end): the share of the rest
+/// that runs along edgels, the unhidden share of the whole, and the share of the unhidden
+/// that is not dim.
+pub fn image_support_shown(
+    model: &MatcherModel,
+    pose: &Isometry3<f64>,
+    ev: &ImageEvidence,
+    solids: &[&super::occlusion::Solid],
+    dim: &[bool],
+) -> (f64, f64, f64) {
+    let (mut seen, mut shown, mut unhidden, mut all) = (0.0, 0.0, 0.0, 0.0);
+    for (k, [a3, b3], [a, b]) in facing_lines(model, pose, ev.cam) {
         let len = (b - a).norm();
         if len < 2.0 * STEP_PX {
             continue;
         }
         let steps = (len / STEP_PX) as usize;
         let (dir, bins) = ((b - a) / len, EdgeMask::bins_along((b - a) / len));
-        for k in 1..steps {
-            let f = k as f64 / steps as f64;
+        let is_dim = dim.get(k).copied().unwrap_or(false);
+        for s in 1..steps {
+            let f = s as f64 / steps as f64;
             all += STEP_PX;
             if solids.iter().any(|s| s.hides(&(a3 + (b3 - a3) * f))) {
                 continue;
             }
             unhidden += STEP_PX;
+            if is_dim {
+                continue;
+            }
+            shown += STEP_PX;
             let q = a + (b - a) * f;
             if ev.mask.any_near(q.x, q.y, bins) && edgel_along(ev.edges, &ev.mask, q.x, q.y, dir) {
                 seen += STEP_PX;
             }
         }
     }
-    if unhidden <= 0.0 { (0.0, 0.0) } else { (seen / unhidden, unhidden / all) }
+    if shown <= 0.0 { (0.0, unhidden / all.max(1e-12), 0.0) } else { (seen / shown, unhidden / all, shown / unhidden) }
 }
 
 /// The image edges of the objects located so far (their camera-facing wireframes, projected):
@@ -320,7 +351,7 @@ impl Explained {
     ) -> Explained {
         let mut segments = Vec::new();
         for (model, pose) in located {
-            for (_, [a, b]) in facing_lines(model, pose, cam).filter(|(_, [a, b])| (b - a).norm() > 1e-9) {
+            for (_, _, [a, b]) in facing_lines(model, pose, cam).filter(|(_, _, [a, b])| (b - a).norm() > 1e-9) {
                 segments.push((a, b, (b - a).normalize()));
             }
         }
@@ -363,7 +394,7 @@ impl Explained {
     /// along the edges.
     pub fn share(&self, model: &MatcherModel, pose: &Isometry3<f64>, cam: &PinholeCamera) -> f64 {
         let (mut explained, mut all) = (0.0, 0.0);
-        for (_, [a, b]) in facing_lines(model, pose, cam) {
+        for (_, _, [a, b]) in facing_lines(model, pose, cam) {
             let len = (b - a).norm();
             if len < 2.0 * STEP_PX {
                 continue;
