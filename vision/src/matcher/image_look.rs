@@ -28,7 +28,7 @@
 //! 95.61% with the same (both with corners of 4 px).
 
 use super::contrast::Shown;
-use super::model::{Corner, Located, MatchParams, MatcherModel, Seg, Table, eye_of};
+use super::model::{FlatCorner, FlatCorners, Located, MatchParams, MatcherModel, Seg, Table, eye_of};
 use super::occlusion::{MIN_IN_VIEW, Solid};
 use super::support::support;
 use super::table::rests_flat;
@@ -119,25 +119,7 @@ fn crossing(
     Some(p + d * ((w.x * e.y - w.y * e.x) / den))
 }
 
-/// A model corner as a part lying flat on its face `resting` (outward normal, model frame)
-/// shows it, in `cam`'s axes before the turn about the table's normal that places it: the
-/// turn `lay` that rests the face on the table, the corner's level edge leaving it along
-/// `out`, the other along `other`, and the corner's height above the top; where the other
-/// edge is level too, the cosine and sine of the turn about the table's normal from the one to
-/// the other (which no turn about the normal changes).
-struct FlatCorner<'c> {
-    corner: &'c Corner,
-    lay: Rotation3<f64>,
-    out: Vector3<f64>,
-    other: Vector3<f64>,
-    out_len: f64,
-    height: f64,
-    level_turn: Option<(f64, f64)>,
-    /// Whether the other edge runs straight up (1) or down (-1) from the corner, if it does.
-    upright: Option<f64>,
-}
-
-fn flat_corners<'c>(model: &'c MatcherModel, up: &Vector3<f64>) -> Vec<FlatCorner<'c>> {
+fn flat_corners(model: &MatcherModel, up: &Vector3<f64>) -> Vec<FlatCorner> {
     let mut out = Vec::new();
     for n in &model.resting {
         // Half a turn about any axis across `n` where it already points up.
@@ -153,26 +135,26 @@ fn flat_corners<'c>(model: &'c MatcherModel, up: &Vector3<f64>) -> Vec<FlatCorne
             let level_turn =
                 (other.dot(up).abs() < 1e-6).then(|| (out_dir.dot(&other), up.dot(&out_dir.cross(&other))));
             let upright = (other.dot(up).abs() > 1.0 - 1e-9).then(|| other.dot(up).signum());
-            out.push(FlatCorner { corner: c, lay, out: out_dir, other, out_len, height, level_turn, upright });
+            out.push(FlatCorner { corner: c.clone(), lay, out: out_dir, other, out_len, height, level_turn, upright });
         }
     }
     out
 }
 
-/// A model's flat corners with an index by what the other edge does: lying level (by the
-/// angle they make on the table), standing upright (up, down), or neither; so that an image
-/// corner is tried only against those that may fit it (most of the image look's time went on
-/// trying every corner against every image corner).
-struct FlatCorners<'c> {
-    all: Vec<FlatCorner<'c>>,
-    /// Level ones by the angle from the level edge to the other, ascending.
-    level: Vec<(f64, usize)>,
-    upright: [Vec<usize>; 2],
-    other: Vec<usize>,
+/// `model`'s flat corners on a table whose normal is `up` (`cam`), made on the first look and
+/// kept with the model for that table (the cameras do not move between scenes); made afresh,
+/// not kept, for another.
+fn flat_corners_of<'m>(model: &'m MatcherModel, up: &Vector3<f64>) -> std::borrow::Cow<'m, FlatCorners> {
+    let (kept_for, flat) = model.flat_corners.get_or_init(|| (*up, FlatCorners::new(flat_corners(model, up))));
+    if kept_for == up {
+        std::borrow::Cow::Borrowed(flat)
+    } else {
+        std::borrow::Cow::Owned(FlatCorners::new(flat_corners(model, up)))
+    }
 }
 
-impl<'c> FlatCorners<'c> {
-    fn new(all: Vec<FlatCorner<'c>>) -> FlatCorners<'c> {
+impl FlatCorners {
+    fn new(all: Vec<FlatCorner>) -> FlatCorners {
         let (mut level, mut upright, mut other) = (Vec::new(), [Vec::new(), Vec::new()], Vec::new());
         for (i, f) in all.iter().enumerate() {
             match (f.level_turn, f.upright) {
@@ -188,7 +170,7 @@ impl<'c> FlatCorners<'c> {
     /// The corners that may fit `edge`: those whose level angle lies within [`LEVEL_TURN_RAD`]
     /// of the image corner's (all of them where it has none), the upright ones that stand the
     /// way its other line runs, and those with neither.
-    fn for_edge<'a>(&'a self, edge: &LevelEdge) -> impl Iterator<Item = &'a FlatCorner<'c>> {
+    fn for_edge<'a>(&'a self, edge: &LevelEdge) -> impl Iterator<Item = &'a FlatCorner> {
         use std::f64::consts::{PI, TAU};
         let (first, second) = match edge.level_turn {
             None => (&self.level[..], &self.level[..0]),
@@ -354,7 +336,7 @@ pub(crate) fn locate(
     }
     let look = Look { model, table, views: views_of(ev, right), located, explained, shown };
     let up = Vector3::from(table.up);
-    let flat = FlatCorners::new(flat_corners(model, &up));
+    let flat = flat_corners_of(model, &up);
     let mut best: Option<(f64, Isometry3<f64>)> = None;
     let mut tried: Vec<Isometry3<f64>> = Vec::new();
     let edges = image_corners.iter().flat_map(|ic| (0..2).filter_map(move |first| LevelEdge::new(ic, first, &up, ev)));
@@ -503,6 +485,7 @@ mod tests {
     use super::*;
     use crate::front_end::canny::EdgeMap;
     use crate::matcher::fixtures::{model, verged_pair};
+    use crate::matcher::model::Corner;
     use crate::matcher::verify::{RightImage, drawn::model_edges};
 
     /// A block lying flat on the table (the world's z = 0), its camera-facing edges drawn in both
@@ -667,7 +650,7 @@ mod tests {
             other_len: 0.01,
         };
         let at = |angle: f64| FlatCorner {
-            corner: &corner,
+            corner: corner.clone(),
             lay: Rotation3::identity(),
             out: Vector3::x(),
             other: Vector3::y(),

@@ -3,7 +3,7 @@
 //! its solid and grasps, the tables derived from it once (its characteristic views' focus
 //! pairs, the grid of lines near each cell), the matcher's parameters, and a located object.
 
-use nalgebra::{Isometry3, Point3, Vector3};
+use nalgebra::{Isometry3, Point3, Rotation3, Vector3};
 use serde::{Deserialize, Serialize};
 
 /// A straight 3D segment with its unit direction and length.
@@ -64,6 +64,9 @@ pub struct MatcherModel {
     /// The lines near each cell of a grid over the model, laid out on the first search for its
     /// support distance (kept with it).
     pub(crate) grid: std::sync::OnceLock<LineGrid>,
+    /// The corners as the part lying flat shows them, on the first image look for the table's
+    /// normal then (`cam`), kept with it.
+    pub(crate) flat_corners: std::sync::OnceLock<(Vector3<f64>, FlatCorners)>,
     /// The outward normals of the faces the part can lie on (those of its convex hull's facets
     /// that are faces of the solid), model frame: a part lying flat on the table has one of
     /// them pointing straight down.
@@ -108,6 +111,7 @@ impl MatcherModel {
             lines,
             views: std::sync::OnceLock::new(),
             grid: std::sync::OnceLock::new(),
+            flat_corners: std::sync::OnceLock::new(),
         }
     }
 }
@@ -121,6 +125,38 @@ pub(crate) struct Corner {
     pub(crate) out: Vector3<f64>,
     pub(crate) other_out: Vector3<f64>,
     pub(crate) other_len: f64,
+}
+
+/// A model corner as a part lying flat on its face `resting` (outward normal, model frame)
+/// shows it (for the image look, [`super::image_look`]), in `cam`'s axes before the turn about the table's normal that places it: the
+/// turn `lay` that rests the face on the table, the corner's level edge leaving it along
+/// `out`, the other along `other`, and the corner's height above the top; where the other
+/// edge is level too, the cosine and sine of the turn about the table's normal from the one to
+/// the other (which no turn about the normal changes).
+#[derive(Debug, Clone)]
+pub(crate) struct FlatCorner {
+    pub(crate) corner: Corner,
+    pub(crate) lay: Rotation3<f64>,
+    pub(crate) out: Vector3<f64>,
+    pub(crate) other: Vector3<f64>,
+    pub(crate) out_len: f64,
+    pub(crate) height: f64,
+    pub(crate) level_turn: Option<(f64, f64)>,
+    /// Whether the other edge runs straight up (1) or down (-1) from the corner, if it does.
+    pub(crate) upright: Option<f64>,
+}
+
+/// A model's flat corners with an index by what the other edge does: lying level (by the
+/// angle they make on the table), standing upright (up, down), or neither; so that an image
+/// corner is tried only against those that may fit it (most of the image look's time went on
+/// trying every corner against every image corner).
+#[derive(Debug, Clone)]
+pub(crate) struct FlatCorners {
+    pub(crate) all: Vec<FlatCorner>,
+    /// Level ones by the angle from the level edge to the other, ascending.
+    pub(crate) level: Vec<(f64, usize)>,
+    pub(crate) upright: [Vec<usize>; 2],
+    pub(crate) other: Vec<usize>,
 }
 
 /// Every two edges of `lines` that leave one corner at an angle, both ways round.
