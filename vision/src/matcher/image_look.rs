@@ -28,6 +28,7 @@
 //! 95.61% with the same (both with corners of 4 px).
 
 use super::contrast::Shown;
+use super::image_fit::View;
 use super::model::{FlatCorner, FlatCorners, Located, MatchParams, MatcherModel, Seg, Table, eye_of};
 use super::occlusion::{MIN_IN_VIEW, Solid};
 use super::support::support;
@@ -382,11 +383,10 @@ pub(crate) fn rejudge(
     best.map(|best| located_at(model, (scene, claimed), p, best))
 }
 
+/// The pair's two images as the stereo fit takes them: the left, and the right where it sits.
 fn views_of<'a>(ev: &'a ImageEvidence<'a>, right: &'a super::verify::RightImage<'a>) -> [View<'a>; 2] {
     [View { ev, cam_from_left: Isometry3::identity() }, View { ev: &right.ev, cam_from_left: right.right_from_cam }]
 }
-
-use super::image_fit::View;
 
 /// What the image look judges a start by.
 struct Look<'l> {
