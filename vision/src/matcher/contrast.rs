@@ -177,7 +177,7 @@ mod tests {
     fn the_tables_grey_is_read_beside_the_edges_a_part_rests_on() {
         let (block, pose, cam, table) = block_on_table();
         let lit = light(&cam, Vector3::new(-0.2, -1.0, 1.0), 0.2 * 255.0, 0.8 * 255.0);
-        let edges = canny(&render(&cam, &[(&block, pose)], &lit, 90), &CannyParams::default());
+        let edges = canny(&render(&cam, &[(&block, pose)], &|n| lit.predict(n), 90), &CannyParams::default());
         let ev = ImageEvidence::new(&cam, &edges, Vec::new());
         let shown = Shown::measure(lit, std::slice::from_ref(&block), &[located(&block, pose)], &ev, &table);
         let grey = shown.expect("the table's grey").table_grey;

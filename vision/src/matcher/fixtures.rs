@@ -11,13 +11,15 @@ pub(crate) fn model(name: &str) -> MatcherModel {
     MatcherModel::from_model(lib.get(name).unwrap_or_else(|| panic!("no model `{name}` in the library")))
 }
 
-/// A 512 x 512 image of `objects` (models at poses in the `cam` frame) lit by `light`
-/// against a uniform `background`, by casting a ray through each pixel centre:
-/// no other code of the crate's draws it.
+/// A 512 x 512 image of `objects` (models at poses in the `cam` frame) against a uniform
+/// `background`, by casting a ray through each pixel centre, a face of normal `n` (`cam`)
+/// showing `shade(n)` grey levels per unit albedo (a light's prediction: taken as a function,
+/// so that the fixtures import none of the modules whose tests use them). No other code of
+/// the crate's draws it.
 pub(crate) fn render(
     cam: &mesh::PinholeCamera,
     objects: &[(&MatcherModel, Isometry3<f64>)],
-    light: &super::light::Light,
+    shade: &dyn Fn(&Vector3<f64>) -> f64,
     background: u8,
 ) -> crate::image::GreyImage {
     let faces: Vec<([Point3<f64>; 3], f64)> =
@@ -32,7 +34,7 @@ pub(crate) fn render(
             .min_by(|a, b| a.0.total_cmp(&b.0));
         if let Some((_, t, albedo)) = nearest {
             let n = (t[1] - t[0]).cross(&(t[2] - t[0])).normalize();
-            *px = (albedo * light.predict(&n)).round().clamp(0.0, 255.0) as u8;
+            *px = (albedo * shade(&n)).round().clamp(0.0, 255.0) as u8;
         }
     }
     crate::image::GreyImage::new(512, 512, pixels).unwrap()

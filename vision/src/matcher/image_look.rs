@@ -555,7 +555,12 @@ mod tests {
         let table_grey = (s.block.albedo * light.ambient).round();
         let draw = |cam: &mesh::PinholeCamera, from_left: Isometry3<f64>| {
             let l = super::super::light::Light { towards_light: from_left.rotation * light.towards_light, ..light };
-            let image = crate::matcher::fixtures::render(cam, &[(&s.block, from_left * s.truth)], &l, table_grey as u8);
+            let image = crate::matcher::fixtures::render(
+                cam,
+                &[(&s.block, from_left * s.truth)],
+                &|n| l.predict(n),
+                table_grey as u8,
+            );
             canny(&image, &CannyParams::default())
         };
         let (left_edges, right_edges) = (draw(left, Isometry3::identity()), draw(right, right_from_cam));

@@ -399,7 +399,7 @@ mod tests {
     fn faces_read_beside_their_edges_show_the_light_that_drew_them_and_a_wedge_turned_over_does_not() {
         let (cam, objects) = scene();
         let drawn: Vec<(&MatcherModel, Isometry3<f64>)> = objects.iter().map(|(m, p)| (m, *p)).collect();
-        let edges = canny(&render(&cam, &drawn, &truth_light(), 40), &CannyParams::default());
+        let edges = canny(&render(&cam, &drawn, &|n| truth_light().predict(n), 40), &CannyParams::default());
         let ev = ImageEvidence::new(&cam, &edges, Vec::new());
         let solids: Vec<Solid> = objects.iter().map(|(m, p)| Solid::new(m, p)).collect();
         let shades_of = |i: usize, pose: &Isometry3<f64>| {
@@ -449,7 +449,7 @@ mod tests {
         );
         objects.push((model("u_channel"), channel_pose));
         let drawn: Vec<(&MatcherModel, Isometry3<f64>)> = objects.iter().map(|(m, p)| (m, *p)).collect();
-        let edges = canny(&render(&cam, &drawn, &truth_light(), 40), &CannyParams::default());
+        let edges = canny(&render(&cam, &drawn, &|n| truth_light().predict(n), 40), &CannyParams::default());
         let ev = ImageEvidence::new(&cam, &edges, Vec::new());
         let bracket = model("l_bracket");
         let models: Vec<MatcherModel> = objects.iter().map(|(m, _)| m.clone()).chain([bracket.clone()]).collect();
@@ -490,7 +490,7 @@ mod before_the_polish {
     fn a_report_whose_pose_before_the_polish_fits_the_light_stands() {
         let (cam, objects) = scene();
         let drawn: Vec<(&MatcherModel, Isometry3<f64>)> = objects.iter().map(|(m, p)| (m, *p)).collect();
-        let edges = canny(&render(&cam, &drawn, &truth_light(), 40), &CannyParams::default());
+        let edges = canny(&render(&cam, &drawn, &|n| truth_light().predict(n), 40), &CannyParams::default());
         let ev = ImageEvidence::new(&cam, &edges, Vec::new());
         let models: Vec<MatcherModel> = objects.iter().map(|(m, _)| m.clone()).collect();
         let truth: Vec<Isometry3<f64>> = objects.iter().map(|(_, pose)| *pose).collect();
