@@ -359,8 +359,8 @@ pub(crate) fn locate(
 }
 
 /// The image look's `faint` starts of `model` (those [`locate`] gave up on for want of
-/// edgels) judged again on the edges the light lets show: only those with an edge it leaves
-/// dim, as the others would fare as they did.
+/// edgels) judged again on the edges the light lets show. The caller passes only those with
+/// an edge the light leaves dim: the others would fare as they did.
 pub(crate) fn rejudge(
     model: &MatcherModel,
     (scene, claimed): (&[Seg], &[bool]),
@@ -373,7 +373,7 @@ pub(crate) fn rejudge(
     let look = Look { model, table, views: views_of(ev, right), located, explained, shown: Some(shown) };
     let mut best: Option<(f64, Isometry3<f64>)> = None;
     let mut tried: Vec<Isometry3<f64>> = Vec::new();
-    for start in faint.iter().filter(|start| shown.dim_lines(model, start).contains(&true)) {
+    for start in faint {
         if let Judged::Seen(seen, pose) = look.judge(start, &mut tried)
             && best.is_none_or(|(b, _)| seen > b)
         {

@@ -88,8 +88,15 @@ pub fn locate_all(
             let shown = p.table.as_ref().and_then(|t| super::contrast::Shown::measure(light, models, &kept, ev, t));
             let again = match (kept.len() < before, shown.as_ref()) {
                 (true, shown) => Some(Again::All(shown)),
-                (false, Some(shown)) if faint.iter().any(|f: &Vec<_>| !f.is_empty()) => {
-                    Some(Again::Faint(&faint, shown))
+                (false, Some(shown)) => {
+                    // Only the faint starts with an edge the light leaves dim can fare otherwise
+                    // (none, mostly, under a light from behind the cameras: then nothing runs).
+                    let dim: Vec<Vec<Isometry3<f64>>> = models
+                        .iter()
+                        .zip(&faint)
+                        .map(|(m, f)| f.iter().filter(|s| shown.dim_lines(m, s).contains(&true)).copied().collect())
+                        .collect();
+                    dim.iter().any(|f| !f.is_empty()).then_some(Again::Faint(dim, shown))
                 }
                 _ => None,
             };
@@ -105,8 +112,9 @@ pub fn locate_all(
 enum Again<'f> {
     /// From every image corner, judged on the edges the light lets show where it is known.
     All(Option<&'f super::contrast::Shown>),
-    /// From the first image look's faint starts (per model), judged so.
-    Faint(&'f [Vec<Isometry3<f64>>], &'f super::contrast::Shown),
+    /// From the first image look's faint starts with an edge the light leaves dim (per model),
+    /// judged so.
+    Faint(Vec<Vec<Isometry3<f64>>>, &'f super::contrast::Shown),
 }
 
 /// The image look again once the shading check has fitted a light: in full where the check
@@ -152,7 +160,7 @@ fn look_again_from_the_image(
             let located = super::image_look::LocatedSolids::new(models, kept, ev);
             models
                 .par_iter()
-                .zip(faint)
+                .zip(&faint)
                 .filter(|(_, f)| !f.is_empty())
                 .filter_map(|(m, f)| {
                     super::image_look::rejudge(m, (scene, &claimed), p, ev, (f, &located, &explained), shown)
