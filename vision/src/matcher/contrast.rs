@@ -16,6 +16,7 @@
 
 use super::light::{Light, median};
 use super::model::{Located, MatcherModel, Table};
+use super::shading::END_MARGIN;
 use super::verify::ImageEvidence;
 use nalgebra::{Isometry3, Point3, Vector3};
 
@@ -121,7 +122,7 @@ fn table_greys_beside<'a>(
             let steps = (len / STEP_PX) as usize;
             (1..steps.max(1)).filter_map(move |s| {
                 let f = s as f64 / steps as f64;
-                if !(0.2..=0.8).contains(&f) {
+                if !(END_MARGIN..=1.0 - END_MARGIN).contains(&f) {
                     return None;
                 }
                 super::shading::grey_beside(ev, a + (b - a) * f, dir, away)

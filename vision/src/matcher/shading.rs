@@ -19,7 +19,7 @@ use nalgebra::{Isometry3, Point3, Vector2, Vector3};
 /// Samples are taken along the middle of each projected edge only (this share of its length
 /// at either end is left out), as near a corner the grey level beside the edge may be another
 /// face's.
-const END_MARGIN: f64 = 0.2;
+pub(crate) const END_MARGIN: f64 = 0.2;
 /// Image samples along a projected edge are this far apart (pixels).
 const STEP_PX: f64 = 2.0;
 /// A face is judged only when this many edgels along its edges gave its grey level.
