@@ -136,10 +136,42 @@ fn flat_corners(model: &MatcherModel, up: &Vector3<f64>) -> Vec<FlatCorner> {
             let level_turn =
                 (other.dot(up).abs() < 1e-6).then(|| (out_dir.dot(&other), up.dot(&out_dir.cross(&other))));
             let upright = (other.dot(up).abs() > 1.0 - 1e-9).then(|| other.dot(up).signum());
-            out.push(FlatCorner { corner: c.clone(), lay, out: out_dir, other, out_len, height, level_turn, upright });
+            let other_local = Vector3::new(out_dir.dot(&other), up.cross(&out_dir).dot(&other), up.dot(&other));
+            let corner = c.clone();
+            let shape = 0; // numbered with the others' in `FlatCorners::new`
+            out.push(FlatCorner {
+                corner,
+                lay,
+                out: out_dir,
+                out_len,
+                height,
+                level_turn,
+                upright,
+                other_local,
+                shape,
+            });
         }
     }
     out
+}
+
+/// Numbers each of `all`'s distinct shapes (height, edge lengths, the other edge in the level
+/// edge's frame, alike within a nanometre), in order of first appearance; returns how many.
+fn number_shapes(all: &mut [FlatCorner]) -> usize {
+    let key =
+        |f: &FlatCorner| [f.height, f.out_len, f.corner.other_len, f.other_local.x, f.other_local.y, f.other_local.z];
+    let mut shapes: Vec<[f64; 6]> = Vec::new();
+    for f in all.iter_mut() {
+        let k = key(f);
+        f.shape = match shapes.iter().position(|s| s.iter().zip(&k).all(|(a, b)| (a - b).abs() < 1e-9)) {
+            Some(i) => i,
+            None => {
+                shapes.push(k);
+                shapes.len() - 1
+            }
+        };
+    }
+    shapes.len()
 }
 
 /// `model`'s flat corners on a table whose normal is `up` (`cam`), made on the first look and
@@ -155,7 +187,8 @@ fn flat_corners_of<'m>(model: &'m MatcherModel, up: &Vector3<f64>) -> std::borro
 }
 
 impl FlatCorners {
-    fn new(all: Vec<FlatCorner>) -> FlatCorners {
+    fn new(mut all: Vec<FlatCorner>) -> FlatCorners {
+        let shapes = number_shapes(&mut all);
         let (mut level, mut upright, mut other) = (Vec::new(), [Vec::new(), Vec::new()], Vec::new());
         for (i, f) in all.iter().enumerate() {
             match (f.level_turn, f.upright) {
@@ -165,7 +198,7 @@ impl FlatCorners {
             }
         }
         level.sort_by(|a, b| a.0.total_cmp(&b.0));
-        FlatCorners { all, level, upright, other }
+        FlatCorners { all, level, upright, other, shapes }
     }
 
     /// The corners that may fit `edge`: those whose level angle lies within [`LEVEL_TURN_RAD`]
@@ -176,7 +209,7 @@ impl FlatCorners {
         let (first, second) = match edge.level_turn {
             None => (&self.level[..], &self.level[..0]),
             Some((cos, sin)) => {
-                // Widened by a hair: `LevelEdge::pose` holds them to the tolerance exactly.
+                // Widened by a hair: `LevelEdge::corner_at` holds them to the tolerance exactly.
                 let (at, reach) = (sin.atan2(cos), LEVEL_TURN_RAD + 1e-9);
                 let (lo, hi) = (at - reach, at + reach);
                 if lo < -PI {
@@ -240,10 +273,11 @@ impl<'i> LevelEdge<'i> {
         Some(LevelEdge { ic, first, ray, dir, level_turn, upright })
     }
 
-    /// The pose that rests `f`'s face on `table` with its corner on the ray and its level edge
-    /// along this one; `None` where the ray misses the corner's height or the corner's other
-    /// edge does not image along the corner's other line, out of the corner and at least as long.
-    fn pose(&self, f: &FlatCorner, table: &Table, ev: &ImageEvidence) -> Option<Isometry3<f64>> {
+    /// Where `f`'s corner lies if a part resting on `table` shows it here: on the ray, at the
+    /// corner's height, its level edge along this one; `None` where the ray misses that height
+    /// or the corner's other edge does not image along the corner's other line, out of the
+    /// corner and at least as long. Only `f`'s shape counts ([`FlatCorner::other_local`]).
+    fn corner_at(&self, f: &FlatCorner, table: &Table, ev: &ImageEvidence) -> Option<Point3<f64>> {
         // A corner whose edges lie level makes the same angle on the table as the image lines'
         // level directions do, wherever it lies: the cheapest test, first.
         if let (Some((c, s)), Some((ci, si))) = (f.level_turn, self.level_turn)
@@ -255,10 +289,9 @@ impl<'i> LevelEdge<'i> {
             return None;
         }
         let up = Vector3::from(table.up);
-        // The turn about the normal taking the level edge onto `dir`, by its cosine and sine;
-        // the other edge turned by it must lie near the other line's plane (a cheap test first).
-        let (cos, sin) = (f.out.dot(&self.dir), up.dot(&f.out.cross(&self.dir)));
-        let other = f.other * cos + up.cross(&f.other) * sin + up * (up.dot(&f.other) * (1.0 - cos));
+        // The other edge with the level edge turned onto `dir`; it must lie near the other
+        // line's plane (a cheap test first).
+        let other = self.dir * f.other_local.x + up.cross(&self.dir) * f.other_local.y + up * f.other_local.z;
         if self.ic.normals[1 - self.first].dot(&other).abs() > IN_PLANE {
             return None;
         }
@@ -277,10 +310,29 @@ impl<'i> LevelEdge<'i> {
         if edge.dot(&line) < ALONG_RAD.cos() * edge.norm() * line.norm() || line.norm() > edge.norm() + CORNER_PX {
             return None;
         }
+        Some(at)
+    }
+
+    /// [`Self::corner_at`], asked once for each of the model's corner shapes: `seen` holds
+    /// what it said for each shape so far with this edge.
+    fn corner_at_memo(
+        &self,
+        f: &FlatCorner,
+        (table, ev): (&Table, &ImageEvidence),
+        seen: &mut [Option<Option<Point3<f64>>>],
+    ) -> Option<Point3<f64>> {
+        *seen[f.shape].get_or_insert_with(|| self.corner_at(f, table, ev))
+    }
+
+    /// The pose that rests `f`'s face on the table (normal `up`) with its corner `at` and its
+    /// level edge along this one.
+    fn pose(&self, f: &FlatCorner, at: &Point3<f64>, up: &Vector3<f64>) -> Isometry3<f64> {
+        // The turn about the normal taking the level edge onto `dir`, by its cosine and sine.
+        let (cos, sin) = (f.out.dot(&self.dir), up.dot(&f.out.cross(&self.dir)));
         let yaw = Matrix3::identity() * cos + up.cross_matrix() * sin + up * up.transpose() * (1.0 - cos);
         let rotation = Rotation3::from_matrix_unchecked(yaw) * f.lay;
         let rotation = UnitQuaternion::from_rotation_matrix(&rotation);
-        Some(Isometry3::from_parts(Translation3::from(at.coords - rotation * f.corner.corner.coords), rotation))
+        Isometry3::from_parts(Translation3::from(at.coords - rotation * f.corner.corner.coords), rotation)
     }
 }
 
@@ -341,9 +393,12 @@ pub(crate) fn locate(
     let mut best: Option<(f64, Isometry3<f64>)> = None;
     let mut tried: Vec<Isometry3<f64>> = Vec::new();
     let edges = image_corners.iter().flat_map(|ic| (0..2).filter_map(move |first| LevelEdge::new(ic, first, &up, ev)));
+    let mut shapes_seen = vec![None; flat.shapes];
     for edge in edges {
+        shapes_seen.fill(None);
         for f in flat.for_edge(&edge) {
-            let Some(start) = edge.pose(f, table, ev) else { continue };
+            let Some(at) = edge.corner_at_memo(f, (table, ev), &mut shapes_seen) else { continue };
+            let start = edge.pose(f, &at, &up);
             let eye = eye_of(&start);
             if !model.may_be_seen(f.corner.line, &eye) || !model.may_be_seen(f.corner.other, &eye) {
                 continue;
@@ -608,8 +663,39 @@ mod tests {
         assert!(crate::matcher::fixtures::on_its_lines(&s.block, &found.cam_from_model, &s.truth, 5e-4));
     }
 
+    /// A flat corner's shape is all its test sees, and its pose puts it where the test looked:
+    /// the pose takes the model corner onto the point found, the level edge along the image
+    /// line's level direction and the other edge along the direction the test held to the
+    /// other line; and every corner of one shape has that shape's height and edge lengths.
+    #[test]
+    fn a_flat_corners_pose_shows_its_shape_where_the_test_looked() {
+        let up = Vector3::new(0.1, -0.6, -0.79).normalize();
+        let dir = up.cross(&Vector3::x()).normalize();
+        let ic = ImageCorner { at: Point2::origin(), far: [Point2::origin(); 2], normals: [Vector3::x(); 2] };
+        let edge = LevelEdge { ic: &ic, first: 0, ray: Vector3::z(), dir, level_turn: None, upright: None };
+        let at = Point3::new(0.02, -0.01, 0.7);
+        for name in ["widget", "wedge", "hex_prism", "u_channel", "l_bracket"] {
+            let m = model(name);
+            let flat = FlatCorners::new(flat_corners(&m, &up));
+            assert!(flat.shapes < flat.all.len(), "{name}: {} shapes of {} corners", flat.shapes, flat.all.len());
+            let first_of_shape = |k: usize| flat.all.iter().find(|f| f.shape == k).unwrap();
+            for f in &flat.all {
+                let pose = edge.pose(f, &at, &up);
+                let local = f.other_local;
+                let other = dir * local.x + up.cross(&dir) * local.y + up * local.z;
+                assert!((pose * f.corner.corner - at).norm() < 1e-9, "{name}: the corner where it was looked for");
+                assert!((pose.rotation * f.corner.out - dir).norm() < 1e-6, "{name}: the level edge along the line");
+                assert!((pose.rotation * f.corner.other_out - other).norm() < 1e-6, "{name}: the other edge as tested");
+                let like = first_of_shape(f.shape);
+                let lengths =
+                    [f.height - like.height, f.out_len - like.out_len, f.corner.other_len - like.corner.other_len];
+                assert!(lengths.iter().all(|d| d.abs() < 1e-9) && (f.other_local - like.other_local).norm() < 1e-9);
+            }
+        }
+    }
+
     /// The corners tried against an image corner are exactly those whose level angle and
-    /// upright edge the image corner allows (the tests `LevelEdge::pose` makes first), for
+    /// upright edge the image corner allows (the tests `LevelEdge::corner_at` makes first), for
     /// models lying on every face, at image corners of every angle and either upright way.
     #[test]
     fn each_image_corner_is_tried_against_the_corners_that_may_fit_it() {
@@ -658,11 +744,12 @@ mod tests {
             corner: corner.clone(),
             lay: Rotation3::identity(),
             out: Vector3::x(),
-            other: Vector3::y(),
             out_len: 0.01,
             height: angle,
             level_turn: Some((angle.cos(), angle.sin())),
             upright: None,
+            other_local: Vector3::y(),
+            shape: 0,
         };
         let flat = FlatCorners::new([-3.1, -2.0, 0.0, 3.05].map(at).into());
         let ic = ImageCorner { at: Point2::origin(), far: [Point2::origin(); 2], normals: [Vector3::x(); 2] };

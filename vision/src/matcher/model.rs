@@ -130,7 +130,7 @@ pub(crate) struct Corner {
 /// A model corner as a part lying flat on its face `resting` (outward normal, model frame)
 /// shows it (for the image look, [`super::image_look`]), in `cam`'s axes before the turn about the table's normal that places it: the
 /// turn `lay` that rests the face on the table, the corner's level edge leaving it along
-/// `out`, the other along `other`, and the corner's height above the top; where the other
+/// `out`, the other edge, and the corner's height above the top; where the other
 /// edge is level too, the cosine and sine of the turn about the table's normal from the one to
 /// the other (which no turn about the normal changes).
 #[derive(Debug, Clone)]
@@ -138,12 +138,18 @@ pub(crate) struct FlatCorner {
     pub(crate) corner: Corner,
     pub(crate) lay: Rotation3<f64>,
     pub(crate) out: Vector3<f64>,
-    pub(crate) other: Vector3<f64>,
     pub(crate) out_len: f64,
     pub(crate) height: f64,
     pub(crate) level_turn: Option<(f64, f64)>,
     /// Whether the other edge runs straight up (1) or down (-1) from the corner, if it does.
     pub(crate) upright: Option<f64>,
+    /// The other edge in the level edge's frame: along `out`, along the table's normal crossed
+    /// with `out`, and along the normal. With the height and the two edges' lengths, all that
+    /// decides whether the corner fits an image corner (only the pose depends on the rest).
+    pub(crate) other_local: Vector3<f64>,
+    /// Which of the model's corner shapes it has: flat corners of one shape fit the same image
+    /// corners, where their corners lie on the same rays ([`FlatCorners::shapes`]).
+    pub(crate) shape: usize,
 }
 
 /// A model's flat corners with an index by what the other edge does: lying level (by the
@@ -157,6 +163,9 @@ pub(crate) struct FlatCorners {
     pub(crate) level: Vec<(f64, usize)>,
     pub(crate) upright: [Vec<usize>; 2],
     pub(crate) other: Vec<usize>,
+    /// How many distinct shapes the corners have (boxes' corners are mostly alike: a block lying
+    /// on a face has four corners of each of a few shapes).
+    pub(crate) shapes: usize,
 }
 
 /// Every two edges of `lines` that leave one corner at an angle, both ways round.
