@@ -73,7 +73,7 @@ pub fn locate_all(
     if let Some(ev) = image {
         let turns = super::shading::TurnedCandidates::default();
         super::turnover::turn_by_depth(models, (scene, p), ev, (RIVAL_MAX_SUPPORT, &turns), &mut kept);
-        super::turnover::turn_by_image(models, (scene, p), ev, (RIVAL_MAX_SUPPORT, &turns), &mut kept);
+        super::turnover::turn_by_image(models, (scene, p), ev, &turns, &mut kept);
         // Polished before the shading is judged: a face's grey level tells a reading a few
         // degrees off from one that fits, and the looks leave many a few degrees off. The
         // judge asks the pose before the polish too, and a reading it turns over is polished
