@@ -4,8 +4,8 @@
 //! and the image look (parts lying flat on too few 3D lines, or none), each report set
 //! against other models read from its lines ([`rival_reading`]), the reports turned over where
 //! the edgels' depths or the image say so ([`super::turnover::turn_by_depth`],
-//! [`super::turnover::turn_by_image`]), their poses polished on both images
-//! ([`super::polish`]), the reports' faces read for one light
+//! [`super::turnover::turn_by_image`]), their poses polished on both images and turned where
+//! both show a turn more sharply ([`super::polish`]), the reports' faces read for one light
 //! ([`super::shading::judge_by_shading`]), and last the image look again with that light: in
 //! full where the check dropped a report, else on the starts the first image look gave up for
 //! want of edgels, judged on the edges the light lets show ([`super::contrast`]).
@@ -78,8 +78,15 @@ pub fn locate_all(
         // degrees off from one that fits, and the looks leave many a few degrees off. The
         // judge asks the pose before the polish too, and a reading it turns over is polished
         // after it.
-        let unpolished: Vec<Isometry3<f64>> = kept.iter().map(|r| r.cam_from_model).collect();
+        let mut unpolished: Vec<Isometry3<f64>> = kept.iter().map(|r| r.cam_from_model).collect();
         super::polish::polish_in_stereo(models, (scene, p), ev, &mut kept);
+        // A report turned in stereo is judged on its turned reading alone.
+        let in_stereo = super::polish::turn_in_stereo(models, (scene, p), ev, &turns, &mut kept);
+        for ((before, r), turned) in unpolished.iter_mut().zip(&kept).zip(in_stereo) {
+            if turned {
+                *before = r.cam_from_model;
+            }
+        }
         let judge = (RIVAL_MAX_SUPPORT, &turns);
         let before = kept.len();
         let (turned, light) = super::shading::judge_by_shading(models, (scene, p), ev, judge, (&mut kept, &unpolished));

@@ -38,6 +38,7 @@
 //! - [`occlusion`]: located solids (and a model's own bulk) hiding parts of a wireframe.
 //! - [`second_look`]: objects with too few 3D lines, from one 3D line and an image line.
 //! - [`depths`]: stereo's depths at the left image's matched edgels.
+//! - [`turns`]: the half turns that carry a part most nearly onto itself (what it is misread as).
 //! - [`turnover`]: a part read turned over, turned back where the edgels' depths or the image say so.
 //! - [`light`]: the scene's light as faces' grey levels show it.
 //! - [`shading`]: the grey levels of a reading's faces, read off the edgels beside its edges.
@@ -46,7 +47,8 @@
 //! - [`table_look`]: parts lying flat on the table on too few 3D lines for the first look.
 //! - [`image_look`]: parts lying flat on the table on no 3D line, from an image corner and both images.
 //! - [`merge`]: all models in parallel, reports merged, the second, third and table looks.
-//! - [`polish`]: each report's pose pulled onto the edgels of both images at once.
+//! - [`polish`]: each report's pose pulled onto the edgels of both images at once, and turned
+//!   where both images show a turn of it more sharply.
 //!
 //! The matcher depends on the front end's output types only ([`crate::front_end`]), never the
 //! other way round; within it, [`model`] is what the others share and imports none of them.
@@ -70,6 +72,7 @@ pub mod support;
 pub mod table;
 pub mod table_look;
 pub mod turnover;
+pub mod turns;
 pub mod verify;
 pub mod views;
 

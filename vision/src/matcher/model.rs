@@ -67,6 +67,9 @@ pub struct MatcherModel {
     /// The corners as the part lying flat shows them, on the first image look for the table's
     /// normal then (`cam`), kept with it.
     pub(crate) flat_corners: std::sync::OnceLock<(Vector3<f64>, FlatCorners)>,
+    /// The half turns (model frame) that carry the part most nearly onto itself, worked out on
+    /// first use ([`super::turns::of`]).
+    pub(crate) turns: std::sync::OnceLock<Vec<Isometry3<f64>>>,
     /// The outward normals of the faces the part can lie on (those of its convex hull's facets
     /// that are faces of the solid), model frame: a part lying flat on the table has one of
     /// them pointing straight down.
@@ -112,6 +115,7 @@ impl MatcherModel {
             views: std::sync::OnceLock::new(),
             grid: std::sync::OnceLock::new(),
             flat_corners: std::sync::OnceLock::new(),
+            turns: std::sync::OnceLock::new(),
         }
     }
 }

@@ -163,19 +163,6 @@ const TURN_IMAGE_LOSS: f64 = 0.15;
 /// light more easily).
 const TURN_KEEP_SAMPLES: f64 = 0.5;
 
-/// The model's half turns about its bounding box's three axes through the box's centre: a
-/// flat part read upside down, or end for end, lies in the same box and along many of the
-/// same lines.
-pub(crate) fn half_turns(model: &MatcherModel) -> [Isometry3<f64>; 3] {
-    let centre = nalgebra::center(&model.bounds.0, &model.bounds.1).coords;
-    [Vector3::x_axis(), Vector3::y_axis(), Vector3::z_axis()].map(|axis| {
-        let turn = nalgebra::UnitQuaternion::from_axis_angle(&axis, std::f64::consts::PI);
-        nalgebra::Translation3::from(centre)
-            * Isometry3::from_parts(nalgebra::Translation3::identity(), turn)
-            * nalgebra::Translation3::from(-centre)
-    })
-}
-
 /// Each report on little 3D evidence whose faces the scene's light does not explain: replaced
 /// by the report turned over (a half turn about one of its box's axes, refitted on the 3D lines
 /// and the image) where that keeps the 3D evidence and fits the light far better, else dropped
@@ -249,7 +236,7 @@ pub(crate) fn judge_by_shading(
             // Turned from where the looks left it, as the turns by depth and image did (their
             // refits are reused): each turned reading is refitted anyway.
             let start = unpolished.get(i).copied().unwrap_or(report.cam_from_model);
-            let turned = half_turns(model)
+            let turned = super::turns::half_turns(model)
                 .into_par_iter()
                 .filter_map(|turn| {
                     let c = turns.refit(model, (scene, p), ev, start * turn)?;
@@ -428,8 +415,10 @@ mod tests {
         // The wedge turned end for end about the box's axes lies in the same box; its faces then
         // face other ways and the light does not explain what is read beside them.
         let wedge = &objects[1].0;
-        let turned: Vec<f64> =
-            half_turns(wedge).iter().filter_map(|turn| light.misfit(&shades_of(1, &(objects[1].1 * turn)))).collect();
+        let turned: Vec<f64> = crate::matcher::turns::half_turns(wedge)
+            .iter()
+            .filter_map(|turn| light.misfit(&shades_of(1, &(objects[1].1 * turn))))
+            .collect();
         assert!(!turned.is_empty());
         for m in turned {
             assert!(m > TURN_MISFIT, "a turned wedge fits the light within {m:.1}");

@@ -1,0 +1,178 @@
+//! The half turns that carry a part most nearly onto itself: the readings a part is most
+//! easily mistaken for, which the turns by depth and image ([`super::turnover`]), the shading
+//! check ([`super::shading`]) and the turn in stereo ([`super::polish::turn_in_stereo`]) try
+//! in a report's place.
+//!
+//! A flat part read upside down or end for end lies in the same box and along many of the same
+//! lines: a half turn about one of the box's axes. But a part may also be read lying on the
+//! wrong face: a wedge read resting on its slope where it rests on its bottom puts its slope
+//! on the table, its bottom where its slope is, and most of its edges where its edges are
+//! (only its ends lean 21 deg the other way). That is the half turn about the sum of the two
+//! faces' outward normals, through the line where their planes meet, about no axis of the box.
+
+use super::model::MatcherModel;
+use nalgebra::{Isometry3, Point3, Translation3, Unit, UnitQuaternion, Vector3};
+use std::f64::consts::PI;
+
+/// A turn from one resting face to another is tried only if it carries this share of the
+/// wireframe's length onto the wireframe (within [`OVERLAP_M`] and [`OVERLAP_ANGLE_DEG`]).
+/// Of the library's parts' such turns, the wedge's bottom to slope carries 0.67, an
+/// L-bracket's one leg's outside to the other's 0.63 and a T-piece's top to its stem's side
+/// 0.60; all others 0.46 or less (symmetries aside). (A wedge read end for end on its slope,
+/// a half turn about the slope's normal, carries 0.28: such readings are not tried.)
+pub(crate) const MIN_OVERLAP: f64 = 0.5;
+/// A turned line lies along a line of the wireframe within this distance (metres)...
+const OVERLAP_M: f64 = 0.002;
+/// ...and this angle (degrees).
+const OVERLAP_ANGLE_DEG: f64 = 10.0;
+
+/// The half turns a report is tried in place of (model frame): those about the box's three
+/// axes, then those from one resting face to another that carry [`MIN_OVERLAP`] of the
+/// wireframe onto itself and are neither a symmetry of the part nor one of the box's turns.
+/// Worked out once per model.
+pub(crate) fn of(model: &MatcherModel) -> &[Isometry3<f64>] {
+    model.turns.get_or_init(|| {
+        let mut out: Vec<Isometry3<f64>> = half_turns(model).to_vec();
+        for turn in face_turns(model) {
+            let known = out.iter().any(|t| same_motion(t, &turn));
+            if !known && !is_symmetry(model, &turn) && self_overlap(model, &turn) >= MIN_OVERLAP {
+                out.push(turn);
+            }
+        }
+        out
+    })
+}
+
+/// The model's half turns about its bounding box's three axes through the box's centre.
+pub(crate) fn half_turns(model: &MatcherModel) -> [Isometry3<f64>; 3] {
+    let centre = nalgebra::center(&model.bounds.0, &model.bounds.1);
+    [Vector3::x_axis(), Vector3::y_axis(), Vector3::z_axis()].map(|axis| half_turn_about(axis, &centre))
+}
+
+/// The half turn about the line through `at` along `axis`.
+fn half_turn_about(axis: Unit<Vector3<f64>>, at: &Point3<f64>) -> Isometry3<f64> {
+    let turn = UnitQuaternion::from_axis_angle(&axis, PI);
+    Translation3::from(at.coords)
+        * Isometry3::from_parts(Translation3::identity(), turn)
+        * Translation3::from(-at.coords)
+}
+
+/// For every two resting faces that are not parallel, the half turn that carries the one's
+/// plane onto the other's: about the sum of their outward normals (which the turn swaps),
+/// through the point of the line where the planes meet nearest the box's centre.
+fn face_turns(model: &MatcherModel) -> Vec<Isometry3<f64>> {
+    let centre = nalgebra::center(&model.bounds.0, &model.bounds.1);
+    // Each resting face's plane: its outward normal and offset (the hull's extent along it).
+    let planes: Vec<(Vector3<f64>, f64)> = model
+        .resting
+        .iter()
+        .map(|n| (*n, model.triangles.iter().flatten().map(|c| c.coords.dot(n)).fold(f64::MIN, f64::max)))
+        .collect();
+    let mut out = Vec::new();
+    for (n, o) in &planes {
+        let on = centre + n * (o - centre.coords.dot(n));
+        out.push(half_turn_about(Unit::new_normalize(*n), &on));
+    }
+    for (i, (ni, oi)) in planes.iter().enumerate() {
+        for (nj, oj) in &planes[i + 1..] {
+            let cos = ni.dot(nj);
+            if 1.0 - cos.abs() < 1e-6 {
+                continue;
+            }
+            // centre + a ni + b nj on both planes.
+            let (ri, rj) = (oi - centre.coords.dot(ni), oj - centre.coords.dot(nj));
+            let det = 1.0 - cos * cos;
+            let on_both = centre + ni * ((ri - cos * rj) / det) + nj * ((rj - cos * ri) / det);
+            out.push(half_turn_about(Unit::new_normalize(ni + nj), &on_both));
+        }
+    }
+    out
+}
+
+/// Whether two motions are the same to within a micrometre and a microradian.
+fn same_motion(a: &Isometry3<f64>, b: &Isometry3<f64>) -> bool {
+    (a.translation.vector - b.translation.vector).norm() < 1e-6 && a.rotation.angle_to(&b.rotation) < 1e-6
+}
+
+/// Whether `turn` (in the model's frame) carries the model's wireframe onto itself.
+pub(crate) fn is_symmetry(model: &MatcherModel, turn: &Isometry3<f64>) -> bool {
+    let same = |x: &Point3<f64>, y: &Point3<f64>| (x - y).norm() < 1e-6;
+    model.lines.iter().all(|l| {
+        let (a, b) = (turn * l.a, turn * l.b);
+        model.lines.iter().any(|m| (same(&a, &m.a) && same(&b, &m.b)) || (same(&a, &m.b) && same(&b, &m.a)))
+    })
+}
+
+/// The share of the model's wireframe length that `turn` (model frame) carries along its own
+/// wireframe, sampled every millimetre.
+pub(crate) fn self_overlap(model: &MatcherModel, turn: &Isometry3<f64>) -> f64 {
+    let edges = &model.lines[..model.first_marking];
+    let min_cos = OVERLAP_ANGLE_DEG.to_radians().cos();
+    let along_wireframe = |q: &Point3<f64>, dir: &Vector3<f64>| {
+        edges.iter().any(|m| {
+            let t = (q - m.a).dot(&m.dir).clamp(0.0, m.len);
+            m.dir.dot(dir).abs() >= min_cos && (m.a + m.dir * t - q).norm() < OVERLAP_M
+        })
+    };
+    let along: f64 = edges
+        .iter()
+        .map(|l| {
+            let (a, b) = (turn * l.a, turn * l.b);
+            let dir = (b - a) / l.len;
+            let steps = (l.len / 0.001).ceil().max(1.0) as usize;
+            let hits =
+                (0..steps).filter(|s| along_wireframe(&(a + (b - a) * ((*s as f64 + 0.5) / steps as f64)), &dir));
+            l.len * hits.count() as f64 / steps as f64
+        })
+        .sum();
+    along / edges.iter().map(|l| l.len).sum::<f64>()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::matcher::fixtures::model;
+
+    /// The wedge's turns hold one about no axis of its box that swaps its bottom and its slope:
+    /// the bottom's outward normal goes to the slope's, and the bottom's plane to the slope's.
+    #[test]
+    fn a_wedge_may_be_read_lying_on_its_slope() {
+        let wedge = model("wedge");
+        let (bottom, slope) = (Vector3::new(0.0, 0.0, -1.0), Vector3::new(0.36, 0.0, 0.933));
+        let turns = of(&wedge);
+        assert_eq!(turns.len(), 4, "the box's three and bottom to slope");
+        let swap = turns[3];
+        assert!((swap.rotation * bottom - slope).norm() < 1e-3, "the bottom turned to face where the slope does");
+        // Every corner of the bottom lands in the slope's plane.
+        let slope_offset = wedge.triangles.iter().flatten().map(|c| c.coords.dot(&slope)).fold(f64::MIN, f64::max);
+        let bottom_corners = wedge.triangles.iter().flatten().filter(|c| (c.z - wedge.bounds.0.z).abs() < 1e-9);
+        for c in bottom_corners {
+            assert!(
+                ((swap * c).coords.dot(&slope) - slope_offset).abs() < 1e-4,
+                "a bottom corner off the slope's plane"
+            );
+        }
+        let overlap = self_overlap(&wedge, &swap);
+        assert!((MIN_OVERLAP..0.9).contains(&overlap), "it carries {overlap:.2} of the wireframe onto itself");
+    }
+
+    /// A block's turns are its box's three, all symmetries; a hexagonal prism's turns from one
+    /// side face to another are symmetries too, and so not tried.
+    #[test]
+    fn symmetric_parts_are_tried_turned_about_their_box_only() {
+        let block = model("block");
+        assert_eq!(of(&block).len(), 3);
+        assert!(of(&block).iter().all(|t| is_symmetry(&block, t)));
+        let prism = model("hex_prism");
+        assert_eq!(of(&prism).len(), 3);
+        assert!(face_turns(&prism).iter().any(|t| is_symmetry(&prism, t)), "its side faces swap by symmetries");
+    }
+
+    /// A wedge's box turns are none of them symmetries; the identity is one.
+    #[test]
+    fn a_block_turned_over_is_the_same_block_and_a_wedge_is_not() {
+        let wedge = model("wedge");
+        assert!(half_turns(&wedge).iter().all(|t| !is_symmetry(&wedge, t)));
+        assert!(is_symmetry(&wedge, &Isometry3::identity()));
+    }
+}
