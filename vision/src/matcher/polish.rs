@@ -68,18 +68,8 @@ pub(crate) fn polish_those(
     which: &[bool],
 ) {
     use rayon::prelude::*;
-    let Some(right) = ev.right.as_deref().filter(|_| which.contains(&true)) else { return };
-    let views = [
-        View { ev, cam_from_left: Isometry3::identity() },
-        View { ev: &right.ev, cam_from_left: right.right_from_cam },
-    ];
+    let Some((views, solids)) = stereo_views(models, ev, kept).filter(|_| which.contains(&true)) else { return };
     let model_of = |r: &Located| models.iter().find(|m| m.name == r.model);
-    // Each report's solid in each camera's frame, where the report stands (made once: every
-    // pass of every other report tests its samples against them).
-    let solids: Vec<Vec<Option<Solid>>> = views
-        .iter()
-        .map(|v| kept.iter().map(|r| Some(Solid::new(model_of(r)?, &(v.cam_from_left * r.cam_from_model)))).collect())
-        .collect();
     let poses: Vec<Option<Isometry3<f64>>> = kept
         .par_iter()
         .enumerate()
@@ -87,12 +77,7 @@ pub(crate) fn polish_those(
             if !which.get(i).copied().unwrap_or(false) {
                 return None;
             }
-            let others: Vec<Vec<&Solid>> = solids
-                .iter()
-                .map(|in_view| {
-                    in_view.iter().enumerate().filter(|(k, _)| *k != i).filter_map(|(_, s)| s.as_ref()).collect()
-                })
-                .collect();
+            let others = others_than(&solids, i);
             let model = model_of(r)?;
             let pose = polished(model, &r.cam_from_model, &others, &views);
             let support = |pose: &Isometry3<f64>| support_at(model, pose, scene, p).0;
@@ -105,6 +90,38 @@ pub(crate) fn polish_those(
         r.cam_from_model = pose;
         r.grasps = model.grasps_at(&pose);
     }
+}
+
+/// Both images as views (none without the right image), and each report's solid in each
+/// camera's frame, where the report stands (made once: every pass of every other report tests
+/// its samples against them).
+fn stereo_views<'e>(
+    models: &[MatcherModel],
+    ev: &'e ImageEvidence<'e>,
+    kept: &[Located],
+) -> Option<([View<'e>; 2], SolidsInViews)> {
+    let right = ev.right.as_deref()?;
+    let views = [
+        View { ev, cam_from_left: Isometry3::identity() },
+        View { ev: &right.ev, cam_from_left: right.right_from_cam },
+    ];
+    let model_of = |r: &Located| models.iter().find(|m| m.name == r.model);
+    let solids = views
+        .iter()
+        .map(|v| kept.iter().map(|r| Some(Solid::new(model_of(r)?, &(v.cam_from_left * r.cam_from_model)))).collect())
+        .collect();
+    Some((views, solids))
+}
+
+/// Per view, each report's solid in that camera's frame (`None` for a model not known).
+type SolidsInViews = Vec<Vec<Option<Solid>>>;
+
+/// In each view, the solids of every report but report `i`.
+fn others_than(solids: &[Vec<Option<Solid>>], i: usize) -> Vec<Vec<&Solid>> {
+    solids
+        .iter()
+        .map(|in_view| in_view.iter().enumerate().filter(|(k, _)| *k != i).filter_map(|(_, s)| s.as_ref()).collect())
+        .collect()
 }
 
 /// Whether `model` polished (`poses.1`) runs along edgels for as much of its wireframe as the
@@ -202,27 +219,14 @@ pub(crate) fn turn_in_stereo(
     kept: &mut [Located],
 ) -> Vec<bool> {
     use rayon::prelude::*;
-    let Some(right) = ev.right.as_deref() else { return vec![false; kept.len()] };
-    let views = [
-        View { ev, cam_from_left: Isometry3::identity() },
-        View { ev: &right.ev, cam_from_left: right.right_from_cam },
-    ];
+    let Some((views, solids)) = stereo_views(models, ev, kept) else { return vec![false; kept.len()] };
     let model_of = |r: &Located| models.iter().find(|m| m.name == r.model);
-    let solids: Vec<Vec<Option<Solid>>> = views
-        .iter()
-        .map(|v| kept.iter().map(|r| Some(Solid::new(model_of(r)?, &(v.cam_from_left * r.cam_from_model)))).collect())
-        .collect();
     let turned: Vec<Option<Isometry3<f64>>> = kept
         .par_iter()
         .enumerate()
         .map(|(i, r)| {
             let model = model_of(r)?;
-            let others: Vec<Vec<&Solid>> = solids
-                .iter()
-                .map(|in_view| {
-                    in_view.iter().enumerate().filter(|(k, _)| *k != i).filter_map(|(_, s)| s.as_ref()).collect()
-                })
-                .collect();
+            let others = others_than(&solids, i);
             best_turn(model, (scene, p), (&views, &others), turns, &r.cam_from_model)
         })
         .collect();
@@ -281,6 +285,9 @@ fn best_turn(
                 && then.iter().sum::<f64>() > now.iter().sum::<f64>()
                 && image_support(model, pose, ev) >= now_whole
         })
+        // In the turns' order, whichever thread finishes first: of turns that tie, the last.
+        .collect::<Vec<_>>()
+        .into_iter()
         .max_by(|a, b| a.0.iter().sum::<f64>().total_cmp(&b.0.iter().sum::<f64>()))
         .map(|(_, pose)| pose)
 }
