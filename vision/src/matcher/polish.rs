@@ -325,6 +325,24 @@ mod tests {
         model.lines.iter().map(|l| Seg::new(pose * l.a, pose * l.b)).collect()
     }
 
+    /// A wedge lying on the table before the verged pair: the wedge, the left and right
+    /// cameras, its pose (the left camera's frame) and the right camera's frame from the left's.
+    fn wedge_on_table() -> (MatcherModel, mesh::PinholeCamera, mesh::PinholeCamera, Isometry3<f64>, Isometry3<f64>) {
+        let (left, right) = pair();
+        let truth = left.cam_from_world()
+            * Isometry3::from_parts(
+                Translation3::new(0.01, 0.02, 0.0),
+                UnitQuaternion::from_euler_angles(0.0, 0.0, 0.7),
+            );
+        let right_from_cam = right.cam_from_world() * left.world_from_cam;
+        (model("wedge"), left, right, truth, right_from_cam)
+    }
+
+    /// `pose` 4 deg and 2 mm off, as a 3D line leaning on a silhouette leaves a report.
+    fn off_a_few_degrees(pose: &Isometry3<f64>) -> Isometry3<f64> {
+        Translation3::new(0.002, 0.0, -0.001) * pose * Isometry3::rotation(Vector3::new(0.05, -0.04, 0.02))
+    }
+
     fn off_by(a: &Isometry3<f64>, b: &Isometry3<f64>) -> (f64, f64) {
         let e = a.inverse() * b;
         (e.translation.vector.norm() * 1e3, e.rotation.angle().to_degrees())
@@ -335,19 +353,11 @@ mod tests {
     /// degree, and its grasps move with it; with the left image alone nothing moves.
     #[test]
     fn a_report_a_few_degrees_off_is_polished_onto_both_images() {
-        let wedge = model("wedge");
-        let (left, right) = pair();
-        let truth = left.cam_from_world()
-            * Isometry3::from_parts(
-                Translation3::new(0.01, 0.02, 0.0),
-                UnitQuaternion::from_euler_angles(0.0, 0.0, 0.7),
-            );
-        let right_from_cam = right.cam_from_world() * left.world_from_cam;
+        let (wedge, left, right, truth, right_from_cam) = wedge_on_table();
         let (left_edges, _) = model_edges(&wedge, &truth, &left);
         let (right_edges, _) = model_edges(&wedge, &(right_from_cam * truth), &right);
         let lev = ImageEvidence::new(&left, &left_edges, Vec::new());
-        let start =
-            Translation3::new(0.002, 0.0, -0.001) * truth * Isometry3::rotation(Vector3::new(0.05, -0.04, 0.02));
+        let start = off_a_few_degrees(&truth);
         assert!(off_by(&truth, &start).1 > 3.5);
 
         let mut alone = [report(&wedge, start)];
@@ -380,16 +390,8 @@ mod tests {
     /// report's pose and only the right the truth, the lines hold the report near where it is.
     #[test]
     fn a_polish_that_loses_leaning_3d_lines_is_kept_where_both_images_bear_it_out() {
-        let wedge = model("wedge");
-        let (left, right) = pair();
-        let truth = left.cam_from_world()
-            * Isometry3::from_parts(
-                Translation3::new(0.01, 0.02, 0.0),
-                UnitQuaternion::from_euler_angles(0.0, 0.0, 0.7),
-            );
-        let right_from_cam = right.cam_from_world() * left.world_from_cam;
-        let start =
-            Translation3::new(0.002, 0.0, -0.001) * truth * Isometry3::rotation(Vector3::new(0.05, -0.04, 0.02));
+        let (wedge, left, right, truth, right_from_cam) = wedge_on_table();
+        let start = off_a_few_degrees(&truth);
         let (lines, p) = (true_lines(&wedge, &start), MatchParams::default());
         let support = |pose: &Isometry3<f64>| support_at(&wedge, pose, &lines, &p).0;
         assert!(support(&truth) < KEEP_SUPPORT * support(&start), "the lines lean with the report");
@@ -416,14 +418,7 @@ mod tests {
     /// stays.
     #[test]
     fn a_wedge_read_on_its_slope_is_turned_back_by_both_images() {
-        let wedge = model("wedge");
-        let (left, right) = pair();
-        let truth = left.cam_from_world()
-            * Isometry3::from_parts(
-                Translation3::new(0.01, 0.02, 0.0),
-                UnitQuaternion::from_euler_angles(0.0, 0.0, 0.7),
-            );
-        let right_from_cam = right.cam_from_world() * left.world_from_cam;
+        let (wedge, left, right, truth, right_from_cam) = wedge_on_table();
         let (left_edges, _) = model_edges(&wedge, &truth, &left);
         let (right_edges, _) = model_edges(&wedge, &(right_from_cam * truth), &right);
         let ev = ImageEvidence::new(&left, &left_edges, Vec::new())
