@@ -36,6 +36,11 @@ pub enum EvalTarget {
         /// Slices of the front end (1: whole images).
         #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u16).range(1..=64))]
         slices: u16,
+        /// Deblurred edgels (`CannyParams::deblur`): each edgel beside a parallel step a few
+        /// pixels away placed where its own step lies. Off by default (README, "Edgels beside
+        /// narrow faces").
+        #[arg(long)]
+        deblur: bool,
         #[arg(long)]
         json: bool,
     },
@@ -117,15 +122,24 @@ pub enum EvalTarget {
         scenes: u64,
         #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(..=super::args::MAX_FIRST_SEED))]
         seed: u64,
+        /// Deblurred edgels (`CannyParams::deblur`): each edgel beside a parallel step a few
+        /// pixels away placed where its own step lies. Off by default (README, "Edgels beside
+        /// narrow faces").
+        #[arg(long)]
+        deblur: bool,
         #[arg(long)]
         json: bool,
     },
 }
 
 pub fn run(target: EvalTarget) -> anyhow::Result<()> {
-    let (world, scenes, seed, slices, json) = match target {
-        EvalTarget::Vision { world, scenes, seed, slices, json } => (world, scenes, seed, slices as usize, json),
-        EvalTarget::Locate { world, scenes, seed, json } => return run_locate(&world, scenes, seed, json),
+    let (world, scenes, seed, slices, deblur, json) = match target {
+        EvalTarget::Vision { world, scenes, seed, slices, deblur, json } => {
+            (world, scenes, seed, slices as usize, deblur, json)
+        }
+        EvalTarget::Locate { world, scenes, seed, deblur, json } => {
+            return run_locate(&world, scenes, seed, &canny_params(deblur), json);
+        }
         EvalTarget::Pick { world, trials, seed, json } => return super::eval_pick::run(&world, trials, seed, json),
         EvalTarget::Run { world, scenes, seed, json } => return super::eval_run::eval(&world, scenes, seed, json),
         EvalTarget::Calibrate { world, trials, seed, poses, json } => {
@@ -152,7 +166,7 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
         );
         let left = vision::GreyImage::new(l.width, l.height, l.image).expect("a rendered frame is whole");
         let right = vision::GreyImage::new(r.width, r.height, r.image).expect("a rendered frame is whole");
-        let params = vision::CannyParams::default();
+        let params = canny_params(deblur);
         let fe = if slices > 1 {
             vision::front_end::slices::run_sliced(&left, &right, &calib, &params, slices)
         } else {
@@ -229,14 +243,19 @@ pub struct Pipeline {
     pub settled: bool,
 }
 
-pub fn run_pipeline(scn: &Scenario, seed: u64) -> Pipeline {
+/// The front end's Canny parameters, deblurred or not.
+pub fn canny_params(deblur: bool) -> vision::CannyParams {
+    vision::CannyParams { deblur, ..vision::CannyParams::default() }
+}
+
+pub fn run_pipeline(scn: &Scenario, seed: u64, canny: &vision::CannyParams) -> Pipeline {
     let calib = sim::rig::calibration(&scn.world.cameras);
     let (scene, settled) = super::output::settle(scn, seed);
     let rs = RenderScene::new(scene.world_meshes(&scn.library), &Light::from(&scn.world.light));
     let (l, r) = render_stereo(&rs, &calib, scn.world.render.noise_sigma, seed);
     let left = vision::GreyImage::new(l.width, l.height, l.image.clone()).expect("a rendered frame is whole");
     let right = vision::GreyImage::new(r.width, r.height, r.image.clone()).expect("a rendered frame is whole");
-    let front_end = vision::front_end::slices::run_sliced(&left, &right, &calib, &vision::CannyParams::default(), 8);
+    let front_end = vision::front_end::slices::run_sliced(&left, &right, &calib, canny, 8);
     Pipeline { scene, left: l, right: r, front_end, settled }
 }
 
@@ -250,7 +269,13 @@ pub fn matcher_models(library: &mesh::Library, only: Option<&[String]>) -> Vec<v
         .collect()
 }
 
-fn run_locate(world: &std::path::Path, scenes: u64, seed: u64, json: bool) -> anyhow::Result<()> {
+fn run_locate(
+    world: &std::path::Path,
+    scenes: u64,
+    seed: u64,
+    canny: &vision::CannyParams,
+    json: bool,
+) -> anyhow::Result<()> {
     use marvin::eval::{LocateStats, locate_stats, quantile, symmetries};
     let scn = Scenario::load(world)?;
     let calib = sim::rig::calibration(&scn.world.cameras);
@@ -264,7 +289,7 @@ fn run_locate(world: &std::path::Path, scenes: u64, seed: u64, json: bool) -> an
     let (mut false_reports, mut missed) = (Vec::new(), Vec::new());
     for k in 0..scenes {
         let s = seed + k;
-        let p = run_pipeline(&scn, s);
+        let p = run_pipeline(&scn, s, canny);
         unsettled += usize::from(!p.settled);
         let lines: Vec<vision::matcher::Seg> =
             p.front_end.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
