@@ -17,8 +17,8 @@ pub fn run(
     seed: Option<u64>,
     models: Option<Vec<String>>,
     json: bool,
-    out: Option<&Path>,
-    rerun: Option<&Path>,
+    (out, rerun): (Option<&Path>, Option<&Path>),
+    canny: &vision::CannyParams,
 ) -> anyhow::Result<()> {
     let scn = Scenario::load(world)?;
     if let Some(names) = &models {
@@ -33,7 +33,7 @@ pub fn run(
     }
     let seed = seed.unwrap_or(scn.world.seed);
     let calib = sim::rig::calibration(&scn.world.cameras);
-    let p = run_pipeline(&scn, seed, &vision::CannyParams::default());
+    let p = run_pipeline(&scn, seed, canny);
     let lines: Vec<Seg> = p.front_end.lines3d.iter().map(|l| Seg::new(l.start(), l.end())).collect();
     let sought = matcher_models(&scn.library, models.as_deref());
     let evidence = vision::matcher::verify::ImageEvidence::of_pair(&calib, &p.front_end);
