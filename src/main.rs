@@ -138,9 +138,10 @@ enum Command {
         /// 2D and 3D lines, the located parts, the table and bins.
         #[arg(long)]
         rerun: Option<PathBuf>,
-        /// Deblurred edgels (`CannyParams::deblur`; README, "Edgels beside narrow faces").
+        /// Edgels as the blur places them, not deblurred (`CannyParams::deblur`; README,
+        /// "Edgels beside narrow faces"), for comparison.
         #[arg(long)]
-        deblur: bool,
+        no_deblur: bool,
     },
     /// Settle a scene and pick one object with the simulated arm, planned from the object's true
     /// pose, into the first bin; reports `placed` or what went wrong (`unplanned`, `miss`,
@@ -255,8 +256,8 @@ fn main() -> std::process::ExitCode {
             stereo::geometry(calib.as_deref(), rectified, disparity)
                 .and_then(|g| stereo::run(&left, &right, &g, slices as usize, json, out.as_deref()))
         }
-        Command::Locate { world, seed, models, json, out, rerun, deblur } => {
-            let canny = eval::canny_params(deblur);
+        Command::Locate { world, seed, models, json, out, rerun, no_deblur } => {
+            let canny = eval::canny_params(!no_deblur);
             locate::run(&world, seed, models, json, (out.as_deref(), rerun.as_deref()), &canny)
         }
         Command::Pick { world, object, all: _, model, seed, json, rerun } => {

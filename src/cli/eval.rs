@@ -36,11 +36,11 @@ pub enum EvalTarget {
         /// Slices of the front end (1: whole images).
         #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u16).range(1..=64))]
         slices: u16,
-        /// Deblurred edgels (`CannyParams::deblur`): each edgel beside a parallel step a few
-        /// pixels away placed where its own step lies. Off by default (README, "Edgels beside
-        /// narrow faces").
+        /// Edgels as the blur places them, not deblurred (`CannyParams::deblur`: each edgel
+        /// beside a parallel step a few pixels away placed where its own step lies; README,
+        /// "Edgels beside narrow faces"), for comparison.
         #[arg(long)]
-        deblur: bool,
+        no_deblur: bool,
         #[arg(long)]
         json: bool,
     },
@@ -122,11 +122,11 @@ pub enum EvalTarget {
         scenes: u64,
         #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(..=super::args::MAX_FIRST_SEED))]
         seed: u64,
-        /// Deblurred edgels (`CannyParams::deblur`): each edgel beside a parallel step a few
-        /// pixels away placed where its own step lies. Off by default (README, "Edgels beside
-        /// narrow faces").
+        /// Edgels as the blur places them, not deblurred (`CannyParams::deblur`: each edgel
+        /// beside a parallel step a few pixels away placed where its own step lies; README,
+        /// "Edgels beside narrow faces"), for comparison.
         #[arg(long)]
-        deblur: bool,
+        no_deblur: bool,
         #[arg(long)]
         json: bool,
     },
@@ -134,11 +134,11 @@ pub enum EvalTarget {
 
 pub fn run(target: EvalTarget) -> anyhow::Result<()> {
     let (world, scenes, seed, slices, deblur, json) = match target {
-        EvalTarget::Vision { world, scenes, seed, slices, deblur, json } => {
-            (world, scenes, seed, slices as usize, deblur, json)
+        EvalTarget::Vision { world, scenes, seed, slices, no_deblur, json } => {
+            (world, scenes, seed, slices as usize, !no_deblur, json)
         }
-        EvalTarget::Locate { world, scenes, seed, deblur, json } => {
-            return run_locate(&world, scenes, seed, &canny_params(deblur), json);
+        EvalTarget::Locate { world, scenes, seed, no_deblur, json } => {
+            return run_locate(&world, scenes, seed, &canny_params(!no_deblur), json);
         }
         EvalTarget::Pick { world, trials, seed, json } => return super::eval_pick::run(&world, trials, seed, json),
         EvalTarget::Run { world, scenes, seed, json } => return super::eval_run::eval(&world, scenes, seed, json),

@@ -3,9 +3,9 @@
 //!
 //! MARVIN's two phases, one folder each:
 //!
-//! - [`front_end`]: scene geometry from stereo. Canny (sigma 1, sub-pixel), edge strings,
-//!   rectified edge locations, PMF stereo, 2D lines, 3D lines; on the whole image or in 8
-//!   slices run in parallel and joined.
+//! - [`front_end`]: scene geometry from stereo. Canny (sigma 1, sub-pixel, edgels beside
+//!   narrow faces deblurred), edge strings, rectified edge locations, PMF stereo, 2D lines, 3D
+//!   lines; on the whole image or in 8 slices run in parallel and joined.
 //! - [`matcher`]: model matching. Characteristic views and their pairwise tables, hypotheses
 //!   ranked by support, verification against the left image, refinement, the looks for objects
 //!   with too few 3D lines or partly hidden, all models in parallel.

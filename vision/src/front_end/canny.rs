@@ -2,6 +2,8 @@
 //! applied as a row pass then a column pass), central-difference gradients, non-maximum
 //! suppression along the gradient with sub-pixel location of each edgel (a parabola through
 //! the gradient magnitudes across the edge), and hysteresis between two contrast thresholds.
+//! Then, beyond MARVIN, each edgel that a parallel step a few pixels away has pulled or pushed
+//! is placed where its own step lies ([`CannyParams::deblur`]).
 
 use crate::image::GreyImage;
 use serde::{Deserialize, Serialize};
@@ -18,9 +20,9 @@ pub struct CannyParams {
     /// not where the blur of both puts the peak ([`CannyWorkspace::deblur`]). A face seen
     /// nearly edge on is a strip 2-4 px wide: sigma 1 pulls its edges 0.1-0.6 px towards each
     /// other, and the other camera, which sees the strip wider or narrower, by another
-    /// amount, so their matches' disparities are off by as much. Off by default: see the
-    /// README's "Edgels beside narrow faces" for what it gains and what it costs the matcher.
-    #[serde(default)]
+    /// amount, so their matches' disparities are off by as much. See the README's "Edgels
+    /// beside narrow faces" for what it gains and what it costs.
+    #[serde(default = "deblur_by_default")]
     pub deblur: bool,
 }
 
@@ -35,8 +37,12 @@ impl Default for CannyParams {
     /// 85.7 / 90.0%, false reports 21 / 33 / 19 -> 20 / 25 / 7; 2 (no hysteresis) gave 96.7 /
     /// 85.9 / 90.9% with the same false reports; 3 and 4 less (seeds 1-50).
     fn default() -> Self {
-        CannyParams { sigma: 1.0, low: 2.0, high: 2.5, deblur: false }
+        CannyParams { sigma: 1.0, low: 2.0, high: 2.5, deblur: true }
     }
+}
+
+fn deblur_by_default() -> bool {
+    true
 }
 
 /// One edge point.
@@ -667,7 +673,7 @@ mod tests {
 
     #[test]
     fn deblurring_places_an_edge_beside_a_narrow_strip_where_it_lies() {
-        let deblur = CannyParams { deblur: true, ..CannyParams::default() };
+        let blurred = CannyParams { deblur: false, ..CannyParams::default() };
         // A staircase (a face seen nearly edge on between two others), a bright bar, and a
         // dark strip with a weaker step beyond, at several angles and sub-pixel places.
         for (levels, width, blur_moves_it) in [
@@ -682,8 +688,8 @@ mod tests {
             for (angle, offset) in [(0.0f32, 0.0f32), (0.0, 0.3), (0.4, 0.17), (1.1, 0.71), (0.785, 0.2), (2.5, 0.42)] {
                 let through = (20.0 + offset, 20.0 + offset / 2.0);
                 let img = strip_image(40, angle, through, levels, width);
-                let plain = mean_offset(&img, &CannyParams::default(), angle, through, width);
-                let placed = mean_offset(&img, &deblur, angle, through, width);
+                let plain = mean_offset(&img, &blurred, angle, through, width);
+                let placed = mean_offset(&img, &CannyParams::default(), angle, through, width);
                 worst = (worst.0.max(plain.abs()), worst.1.max(placed.abs()));
             }
             eprintln!("{levels:?} width {width}: plain {:.3} px, deblurred {:.3} px off", worst.0, worst.1);

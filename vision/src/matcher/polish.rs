@@ -295,10 +295,11 @@ fn best_turn(
 /// A turn replaces a report in [`turn_in_stereo`] only if it keeps this share of the report's
 /// 3D support: all of it, bar rounding. Every turn taken on the tuning seeds that put a report
 /// right kept its support or gained (x1.00-1.27: `marvin eval locate`, `widgets.toml` 1-1500,
-/// `dense.toml` 1-400, `side_light.toml` 1-200, with and without `--deblur`), while the two
-/// that turned right reports over (with `--deblur`: a wedge, `widgets.toml` seed 315, by 0.05
-/// of its share along edgels in the two images; a U-channel, 373) kept x0.97 and x0.90 of it,
-/// which the turns by depth and image's 0.9 let through.
+/// `dense.toml` 1-400, `side_light.toml` 1-200, with edgels deblurred and not), while the two
+/// that turned right reports over (with deblurred edgels, [`crate::CannyParams::deblur`]: a
+/// wedge, `widgets.toml` seed 315, by 0.05 of its share along edgels in the two images; a
+/// U-channel, 373) kept x0.97 and x0.90 of it, which the turns by depth and image's 0.9 let
+/// through.
 const TURN_KEEP_SUPPORT: f64 = 0.99;
 /// A turn is refitted only if, turned where the report lies, it runs along edgels for no less
 /// than the report's share less this, of its whole wireframe in the left image (as the turn by
