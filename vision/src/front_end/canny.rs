@@ -595,26 +595,36 @@ pub fn neighbours(x: usize, y: usize, w: usize, h: usize) -> impl Iterator<Item 
 mod tests {
     use super::*;
 
-    /// An image of two grey levels split by the line `n . (p - c) = 0`, each pixel the exact
-    /// mean over its square (by 64 x 64 supersampling), so the edge sits at a known sub-pixel place.
-    fn step_image(size: usize, angle: f32, through: (f32, f32), dark: f32, bright: f32) -> GreyImage {
+    /// An image whose grey level depends on the signed distance from the line through
+    /// `through` with normal at `angle`, each pixel the exact mean over its square (by
+    /// `samples` x `samples` supersampling), so edges sit at known sub-pixel places.
+    fn banded_image(
+        size: usize,
+        (angle, through): (f32, (f32, f32)),
+        samples: usize,
+        level: impl Fn(f32) -> f32,
+    ) -> GreyImage {
         let (nx, ny) = (angle.cos(), angle.sin());
+        let n = samples as f32;
         let pixels = (0..size * size)
             .map(|i| {
                 let (px, py) = ((i % size) as f32, (i / size) as f32);
-                let mut bright_fraction = 0.0;
-                for sy in 0..64 {
-                    for sx in 0..64 {
-                        let (x, y) = (px - 0.5 + (sx as f32 + 0.5) / 64.0, py - 0.5 + (sy as f32 + 0.5) / 64.0);
-                        if nx * (x - through.0) + ny * (y - through.1) > 0.0 {
-                            bright_fraction += 1.0 / 4096.0;
-                        }
+                let mut sum = 0.0;
+                for sy in 0..samples {
+                    for sx in 0..samples {
+                        let (x, y) = (px - 0.5 + (sx as f32 + 0.5) / n, py - 0.5 + (sy as f32 + 0.5) / n);
+                        sum += level(nx * (x - through.0) + ny * (y - through.1));
                     }
                 }
-                (dark + (bright - dark) * bright_fraction).round() as u8
+                (sum / (n * n)).round() as u8
             })
             .collect();
         GreyImage::new(size, size, pixels).unwrap()
+    }
+
+    /// Two grey levels split by the line `n . (p - c) = 0`.
+    fn step_image(size: usize, angle: f32, through: (f32, f32), dark: f32, bright: f32) -> GreyImage {
+        banded_image(size, (angle, through), 64, |d| if d > 0.0 { bright } else { dark })
     }
 
     fn rms_distance(map: &EdgeMap, angle: f32, through: (f32, f32), size: usize) -> (f64, usize) {
@@ -629,31 +639,17 @@ mod tests {
     }
 
     /// Three grey levels in bands: `levels[0]` before the line through `through` with normal
-    /// at `angle`, `levels[1]` for `width` pixels after it, `levels[2]` beyond; each pixel the
-    /// exact mean over its square.
+    /// at `angle`, `levels[1]` for `width` pixels after it, `levels[2]` beyond.
     fn strip_image(size: usize, angle: f32, through: (f32, f32), levels: [f32; 3], width: f32) -> GreyImage {
-        let (nx, ny) = (angle.cos(), angle.sin());
-        let pixels = (0..size * size)
-            .map(|i| {
-                let (px, py) = ((i % size) as f32, (i / size) as f32);
-                let mut sum = 0.0;
-                for sy in 0..32 {
-                    for sx in 0..32 {
-                        let (x, y) = (px - 0.5 + (sx as f32 + 0.5) / 32.0, py - 0.5 + (sy as f32 + 0.5) / 32.0);
-                        let d = nx * (x - through.0) + ny * (y - through.1);
-                        sum += if d < 0.0 {
-                            levels[0]
-                        } else if d < width {
-                            levels[1]
-                        } else {
-                            levels[2]
-                        };
-                    }
-                }
-                (sum / 1024.0).round() as u8
-            })
-            .collect();
-        GreyImage::new(size, size, pixels).unwrap()
+        banded_image(size, (angle, through), 32, |d| {
+            if d < 0.0 {
+                levels[0]
+            } else if d < width {
+                levels[1]
+            } else {
+                levels[2]
+            }
+        })
     }
 
     /// The mean signed distance of the edgels of `img` within half of `width` of the line

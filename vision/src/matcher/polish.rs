@@ -144,15 +144,15 @@ fn sharper_in_both(
     views: &[View],
     others: &[Vec<&Solid>],
 ) -> bool {
-    let seen = |pose: &Isometry3<f64>| -> Vec<f64> {
-        views
-            .iter()
-            .zip(others)
-            .map(|(v, o)| image_support_unhidden(model, &(v.cam_from_left * pose), v.ev, o).0)
-            .collect()
-    };
-    let (before, after) = (seen(report), seen(polished));
+    let (before, after) =
+        (shares_in_view(model, report, views, others), shares_in_view(model, polished, views, others));
     before.iter().zip(&after).all(|(b, a)| a >= b) && after.iter().sum::<f64>() > before.iter().sum::<f64>()
+}
+
+/// The share of `model`'s wireframe at `pose` in view that runs along edgels, in each view,
+/// with `others` (in each view's camera frame) hiding what lies behind them.
+fn shares_in_view(model: &MatcherModel, pose: &Isometry3<f64>, views: &[View], others: &[Vec<&Solid>]) -> Vec<f64> {
+    views.iter().zip(others).map(|(v, o)| image_support_unhidden(model, &(v.cam_from_left * pose), v.ev, o).0).collect()
 }
 
 /// `pose` after the passes of [`PASSES_PX`], each fitting only what neither `others` (the
@@ -261,13 +261,7 @@ fn best_turn(
     use super::verify::{image_support, image_support_at_least};
     use rayon::prelude::*;
     let ev = views[0].ev;
-    let in_view = |pose: &Isometry3<f64>| -> Vec<f64> {
-        views
-            .iter()
-            .zip(others)
-            .map(|(v, o)| image_support_unhidden(model, &(v.cam_from_left * pose), v.ev, o).0)
-            .collect()
-    };
+    let in_view = |pose: &Isometry3<f64>| shares_in_view(model, pose, views, others);
     let support = |pose: &Isometry3<f64>| support_at(model, pose, scene, p).0;
     let (now, now_support, now_whole) = (in_view(report), support(report), image_support(model, report, ev));
     super::turns::of(model)
