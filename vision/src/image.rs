@@ -1,5 +1,5 @@
 //! Grey images as the pipeline sees them: row-major, `y` down, pixel centres at integer
-//! coordinates; and the nearest pixel to a point.
+//! coordinates; and the nearest pixel to a point, and the integer at or below a value.
 
 /// An 8-bit grey image.
 #[derive(Debug, Clone, PartialEq)]
@@ -33,6 +33,15 @@ pub fn nearest_px(x: f64) -> i64 {
     towards_zero.saturating_add(step)
 }
 
+/// `x.floor() as i64`, without the call to the C library's `floor` (see [`nearest_px`]): the
+/// matcher takes the floor of a place for every hypothesis it records and of two angles for
+/// every edge it checks in the image. Exact for every `x`, saturating as the cast does.
+pub fn floor_int(x: f64) -> i64 {
+    let towards_zero = x as i64;
+    // Below zero the cast rounded up, unless `x` was whole.
+    towards_zero.saturating_sub(i64::from(towards_zero as f64 > x))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -53,6 +62,22 @@ mod tests {
         }));
         for x in values {
             assert_eq!(nearest_px(x), x.round() as i64, "{x:e}");
+        }
+    }
+
+    /// The integer at or below a value is `floor`'s, whole values, negatives, values either
+    /// side of whole ones, the infinities, NaN and the far ends included.
+    #[test]
+    fn the_integer_below_is_the_one_floor_gives() {
+        let mut values =
+            vec![0.0, -0.0, 0.5, -0.5, 1.0, -1.0, 1e15 + 0.5, -1e15 - 0.5, 9.3e18, -9.3e18, f64::MAX, f64::MIN];
+        values.extend([f64::INFINITY, f64::NEG_INFINITY, f64::NAN, f64::MIN_POSITIVE, -f64::MIN_POSITIVE]);
+        for k in -2000..2000 {
+            let x = k as f64 * 0.25;
+            values.extend([x, x.next_up(), x.next_down()]);
+        }
+        for x in values {
+            assert_eq!(floor_int(x), x.floor() as i64, "{x:e}");
         }
     }
 }

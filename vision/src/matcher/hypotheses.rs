@@ -32,6 +32,7 @@ pub(crate) fn hypotheses(
 ) -> (Vec<Scored>, Vec<Scored>) {
     use rayon::prelude::*;
     let free_lines = FreeLines::new(scene, &vec![true; scene.len()]);
+    let cells = packed_cells(pairs);
     // One subordinate matcher per characteristic view, in parallel.
     let per_view: Vec<_> = views
         .par_iter()
@@ -39,7 +40,7 @@ pub(crate) fn hypotheses(
             let mut seen =
                 Seen::new(model, p.min_support_fraction * model.total_length, RECORDED_PER_KEPT * p.hypotheses);
             let focus = FocusTable::new(focus, p);
-            for_each_hypothesis(model, scene, (pairs, &free_lines), &focus, p, &mut seen);
+            for_each_hypothesis(model, scene, (pairs, &cells, &free_lines), &focus, p, &mut seen);
             (seen.all, seen.flat.all)
         })
         .collect();
@@ -157,7 +158,8 @@ impl Seen {
     /// The place (a cell of [`PLACE_M`]) where `pose` puts the model.
     fn place(&self, pose: &Isometry3<f64>) -> [i32; 3] {
         let at = pose * self.middle;
-        [at.x, at.y, at.z].map(|v| (v / PLACE_M).floor() as i32)
+        // As `floor() as i32` does, saturating.
+        [at.x, at.y, at.z].map(|v| crate::image::floor_int(v / PLACE_M).clamp(i32::MIN.into(), i32::MAX.into()) as i32)
     }
 
     /// The support a hypothesis at `pose` must exceed to be recorded.
@@ -246,19 +248,33 @@ pub(crate) fn scene_pairs(scene: &[Seg], p: &MatchParams) -> Vec<ScenePair> {
     out
 }
 
+/// Each scene pair's [`FocusTable`] cell packed into one word, separation cell above angle
+/// cell (see [`FocusTable::holds`]).
+fn packed_cells(pairs: &[ScenePair]) -> Vec<u32> {
+    pairs.iter().map(|sp| sp.cell.map(|c| c.min(CELL_MAX)).iter().fold(0, |word, &c| word << 16 | c)).collect()
+}
+
+/// The highest cell index across separation or angle that [`packed_cells`] holds (higher ones
+/// are packed as this, and no table has so many cells).
+const CELL_MAX: u32 = 0xffff;
+
 /// Hands `sink` each hypothesis from a scene pair congruent with a focus pair, with its support
-/// (those that cannot beat the sink's floor are left unscored and unseen).
+/// (those that cannot beat the sink's floor are left unscored and unseen). `cells` are the
+/// pairs' cells packed ([`packed_cells`]).
 pub(crate) fn for_each_hypothesis(
     model: &MatcherModel,
     scene: &[Seg],
-    (pairs, free_lines): (&[ScenePair], &FreeLines),
+    (pairs, cells, free_lines): (&[ScenePair], &[u32], &FreeLines),
     focus: &FocusTable,
     p: &MatchParams,
     sink: &mut Seen,
 ) {
     let mut near = NearLines::default();
     let tolerance = p.separation_tolerance;
-    for sp in pairs {
+    // Most scene pairs fall in cells of the view that hold no focus pair: those are passed
+    // over on their packed cells alone (an eighth of the pairs' own size; see
+    // [`FocusTable::holds`]), in order, as the floors of the places depend on it.
+    for (sp, _) in pairs.iter().zip(cells).filter(|&(_, &cell)| focus.holds(cell)) {
         let (sj, sl) = (&scene[sp.j], &scene[sp.l]);
         let (tj, tl) = (sp.at_j, sp.at_l);
         {
@@ -275,11 +291,16 @@ pub(crate) fn for_each_hypothesis(
                 // each scene line runs, and the model pair's cosine sign must agree.
                 let slack = FIT_SLACK * p.support_distance;
                 let cos = mi.dir.dot(&mk.dir);
-                let ways_j = [1.0, -1.0].into_iter().filter(|&sign_j| {
+                let fits_j = |sign_j: f64| {
                     let tj_from_start = if sign_j > 0.0 { tj } else { sj.len - tj };
                     fits_along(tj_from_start, sj.len, f.at_focus, mi.len, slack)
-                });
-                for (sign_j, sign_l) in ways_j.flat_map(|sign_j| [(sign_j, 1.0), (sign_j, -1.0)]) {
+                };
+                let ways = [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)];
+                let (fits_forwards, fits_backwards) = (fits_j(1.0), fits_j(-1.0));
+                for (sign_j, sign_l) in ways {
+                    if !(if sign_j > 0.0 { fits_forwards } else { fits_backwards }) {
+                        continue;
+                    }
                     let vj = sj.dir * sign_j;
                     // The cosine's sign must agree, unless the lines are too near perpendicular
                     // for it to say anything: then both ways round are tried (taking the noise's
@@ -355,6 +376,8 @@ pub(crate) struct FocusTable<'f> {
     listed: Vec<u16>,
     /// Cells across separation and across angle.
     cells: [u32; 2],
+    /// A bit per cell (row-major, as `starts`), set where the cell holds a focus pair.
+    held: Vec<u64>,
 }
 
 impl<'f> FocusTable<'f> {
@@ -385,7 +408,24 @@ impl<'f> FocusTable<'f> {
             listed.extend(cell);
         }
         starts.push(listed.len() as u32);
-        FocusTable { focus, starts, listed, cells }
+        debug_assert!(cells.iter().all(|&c| c <= CELL_MAX), "{cells:?} cells: too many to pack");
+        let mut held = vec![0u64; starts.len().div_ceil(64)];
+        for (cell, ends) in starts.windows(2).enumerate() {
+            if ends[0] < ends[1] {
+                held[cell / 64] |= 1 << (cell % 64);
+            }
+        }
+        FocusTable { focus, starts, listed, cells, held }
+    }
+
+    /// Whether the cell packed in `cell` ([`packed_cells`]) holds a focus pair.
+    fn holds(&self, cell: u32) -> bool {
+        let (s, a) = (cell >> 16, cell & CELL_MAX);
+        if s >= self.cells[0] || a >= self.cells[1] {
+            return false;
+        }
+        let cell = (s * self.cells[1] + a) as usize;
+        self.held[cell / 64] & (1 << (cell % 64)) != 0
     }
 
     /// The focus pairs of scene pair `sp`'s cell, in order: every one within the tolerances of

@@ -10,7 +10,7 @@
 //! lines supply.
 
 use super::model::{MatcherModel, Seg};
-use super::verify::{ALONG_RAD, ImageEvidence};
+use super::verify::{ALONG_RAD, ImageEvidence, looks_across};
 use nalgebra::{
     Isometry3, Matrix2x3, Matrix6, Point2, Point3, Translation3, UnitQuaternion, Vector2, Vector3, Vector6,
 };
@@ -32,6 +32,7 @@ const LOOK_STOP: (f64, f64) = (1e-4, 1e-5);
 /// The linearised residuals `row . delta = target` gathered as weighted normal equations
 /// (`normal delta = rhs`), and how many there were.
 struct Rows {
+    /// Its lower triangle only, the part the Cholesky factorisation reads (the upper stays 0).
     normal: Matrix6<f64>,
     rhs: Vector6<f64>,
     count: usize,
@@ -45,7 +46,14 @@ impl Rows {
     /// Adds `row . delta = target` with a Huber weight on `target` (in pixels).
     fn add(&mut self, row: Vector6<f64>, target: f64) {
         let w = if target.abs() <= HUBER_PX { 1.0 } else { HUBER_PX / target.abs() };
-        self.normal += w * row * row.transpose();
+        // Term by term as `w * row * row.transpose()` works it out, below the diagonal only:
+        // the rows are most of the image fits' arithmetic.
+        let weighted = w * row;
+        for j in 0..6 {
+            for i in j..6 {
+                self.normal[(i, j)] += weighted[i] * row[j];
+            }
+        }
         self.rhs += w * target * row;
         self.count += 1;
     }
@@ -61,11 +69,25 @@ fn motion_row(x: &Point3<f64>, g: &Vector3<f64>) -> Vector6<f64> {
 /// Offset (pixels, along `normal`) from `u` to the nearest edgel within `search` that runs
 /// along `dir`. The search steps outwards from `u`, both ways by turns, and stops once no
 /// pixel further out could hold a nearer edgel.
-fn nearest_edgel_across(ev: &ImageEvidence, u: &Point2<f64>, dir: &Vector2<f64>, search: f64) -> Option<f64> {
+///
+/// `bins` are `dir`'s orientation bins ([`ImageEvidence::bins_along`]) and `looks` the
+/// search's stretch ([`looks_across`]): a sample with no edgel of those bins anywhere along its
+/// search is passed over on a few look-ups of the mask. (A sample that finds no edgel steps
+/// through every pixel of its search, 25 of them at [`SEARCH_PX`]: the fifth of the samples
+/// that found none took half the steps.)
+fn nearest_edgel_across(
+    ev: &ImageEvidence,
+    u: &Point2<f64>,
+    (dir, bins): (&Vector2<f64>, u32),
+    (search, looks): (f64, &[f64]),
+) -> Option<f64> {
     let normal = Vector2::new(-dir.y, dir.x);
+    if !ev.may_hold_across(u, &normal, looks, bins) {
+        return None;
+    }
+    let steps = (2.0 * search) as i64;
     let cos_along = ALONG_RAD.cos();
     let mut best: Option<f64> = None;
-    let steps = (2.0 * search) as i64;
     for k in 0..=steps {
         let reach = k as f64 * 0.5;
         // An edgel lies within 0.71 px of its pixel's centre.
@@ -112,6 +134,8 @@ fn image_rows(
     rows: &mut Rows,
 ) {
     let cam = ev.cam;
+    // The steps of the search reach this far (see [`nearest_edgel_across`]).
+    let looks = looks_across((2.0 * search) as i64 as f64 * 0.5);
     let seen = cam_from_left * pose;
     let eye = super::model::eye_of(&seen);
     for (k, line) in model.lines.iter().enumerate() {
@@ -126,12 +150,13 @@ fn image_rows(
         }
         let dir = (pb - pa) / len;
         let normal = Vector2::new(-dir.y, dir.x);
+        let bins = ImageEvidence::bins_along(dir);
         let steps = (len / SAMPLE_PX) as usize;
         for step in 1..steps {
             let t = step as f64 / steps as f64;
             let x = a + (b - a) * t;
             let Some(u) = cam.project_cam(&x) else { continue };
-            let Some(d) = nearest_edgel_across(ev, &u, &dir, search) else { continue };
+            let Some(d) = nearest_edgel_across(ev, &u, (&dir, bins), (search, &looks)) else { continue };
             // Last, as it may be dear (the polish tests samples against solids).
             if !keep(k, &x) {
                 continue;

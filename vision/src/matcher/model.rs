@@ -664,16 +664,28 @@ impl LineGrid {
     /// The model lines a scene line with `ends` (model frame) may lie along: those of both
     /// ends' cells (of either, where the other is off the grid; all, where both are or where
     /// the ends are not given).
+    #[cfg(test)]
     pub(crate) fn lines_along(&self, ends: Option<&(Point3<f64>, Point3<f64>)>) -> impl Iterator<Item = usize> + '_ {
+        let mut lines = Vec::new();
+        self.each_line_along(ends, |i| lines.push(i));
+        lines.into_iter()
+    }
+
+    /// Hands `each` the lines of [`LineGrid::lines_along`], in order, without an iterator
+    /// (the support count's inner loop: the flattened iterator over the words was a fiftieth of
+    /// the matcher's instructions).
+    pub(crate) fn each_line_along(&self, ends: Option<&(Point3<f64>, Point3<f64>)>, mut each: impl FnMut(usize)) {
         let (ba, bb) = ends.map_or((None, None), |(a, b)| (self.cell_bits(a), self.cell_bits(b)));
-        (0..self.words).flat_map(move |w| {
-            let word = match (ba, bb) {
+        for w in 0..self.words {
+            let mut word = match (ba, bb) {
                 (Some(x), Some(y)) => x[w] & y[w],
                 (Some(x), None) | (None, Some(x)) => x[w],
                 (None, None) => self.all[w],
             };
-            std::iter::successors((word != 0).then_some(word), |v| Some(v & (v - 1)).filter(|v| *v != 0))
-                .map(move |v| w * 64 + v.trailing_zeros() as usize)
-        })
+            while word != 0 {
+                each(w * 64 + word.trailing_zeros() as usize);
+                word &= word - 1;
+            }
+        }
     }
 }

@@ -131,14 +131,25 @@ pub(crate) fn refine(
     model: &MatcherModel,
     scene: &[Seg],
     free: &[bool],
+    pose: Isometry3<f64>,
+    p: &MatchParams,
+) -> (Isometry3<f64>, f64, Vec<(usize, usize, f64)>) {
+    refine_among(model, scene, &FreeLines::new(scene, free), pose, p)
+}
+
+/// [`refine`] among free lines laid out already (a search refines its best hypotheses on the
+/// same free lines: laying them out for each was a hundredth of the matcher's instructions).
+pub(crate) fn refine_among(
+    model: &MatcherModel,
+    scene: &[Seg],
+    free: &FreeLines,
     mut pose: Isometry3<f64>,
     p: &MatchParams,
 ) -> (Isometry3<f64>, f64, Vec<(usize, usize, f64)>) {
-    let free = FreeLines::new(scene, free);
-    let (mut score, mut pairs) = support_among(model, &pose, scene, &free, p);
+    let (mut score, mut pairs) = support_among(model, &pose, scene, free, p);
     for _ in 0..5 {
         let Some(next) = fit(model, scene, &pairs, &pose) else { break };
-        let (s, pr) = support_among(model, &next, scene, &free, p);
+        let (s, pr) = support_among(model, &next, scene, free, p);
         if s + 1e-9 < score {
             break;
         }

@@ -4,8 +4,8 @@
 
 use super::hypotheses::{ScenePair, hypotheses, rescored, scene_pairs};
 use super::model::{Located, MatchParams, MatcherModel, Seg};
-use super::ranking::{Candidate, best_of, image_support_needed, in_image, refine};
-use super::support::model_lines_of;
+use super::ranking::{Candidate, best_of, image_support_needed, in_image, refine_among};
+use super::support::{FreeLines, model_lines_of};
 use super::table::through_table;
 use super::verify::{ImageEvidence, image_support_at_least};
 use super::views::characteristic_views;
@@ -59,6 +59,7 @@ pub(crate) fn locate_from(
         // support is not worked out, or not to the end: the check stops once it must fail).
         doubtful.clear();
         let ranked = best_of(&seen, TIERS * p.hypotheses);
+        let free_lines = FreeLines::new(scene, &free);
         let (mut best, mut sunk) = (None, None);
         for tier in ranked.chunks(p.hypotheses.max(1)) {
             // A tier's hypotheses verified in parallel (each on its own), in their order.
@@ -67,7 +68,7 @@ pub(crate) fn locate_from(
                 .par_iter()
                 .map(|&start| {
                     let mut doubts = Vec::new();
-                    (verified(model, scene, &free, start, p, image, &mut doubts), doubts)
+                    (verified(model, scene, (&free, &free_lines), start, p, image, &mut doubts), doubts)
                 })
                 .collect();
             let mut passed = Vec::new();
@@ -140,13 +141,13 @@ fn on_the_table(
 fn verified(
     model: &MatcherModel,
     scene: &[Seg],
-    free: &[bool],
+    (free, free_lines): (&[bool], &FreeLines),
     start: Isometry3<f64>,
     p: &MatchParams,
     image: Option<&ImageEvidence>,
     doubtful: &mut Vec<Candidate>,
 ) -> Option<Candidate> {
-    let (pose, score, pairs) = refine(model, scene, free, start, p);
+    let (pose, score, pairs) = refine_among(model, scene, free_lines, start, p);
     let lines_seen = model_lines_of(&pairs).len();
     if score / model.total_length < p.min_support_fraction || lines_seen < p.min_support_lines {
         return None;

@@ -147,9 +147,7 @@ pub(crate) fn for_each_overlap(
             len: sl.len,
         };
         let ends = grid_fits.then_some((in_model.a, in_model.b));
-        for i in grid.lines_along(ends.as_ref()) {
-            each(i, j, overlap(&model.lines[i], &in_model, cos_tolerance, p));
-        }
+        grid.each_line_along(ends.as_ref(), |i| each(i, j, overlap(&model.lines[i], &in_model, cos_tolerance, p)));
     }
 }
 

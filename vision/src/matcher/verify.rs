@@ -7,7 +7,7 @@
 use super::depths::EdgelDepths;
 use super::model::MatcherModel;
 use crate::front_end::canny::{EdgeMap, Edgel};
-use crate::image::nearest_px;
+use crate::image::{floor_int, nearest_px};
 use mesh::PinholeCamera;
 use nalgebra::{Isometry3, Point2, Vector2};
 
@@ -69,6 +69,22 @@ impl<'a> ImageEvidence<'a> {
     /// Whether an edgel was found at row-major pixel `pixel` (cheaper to ask than the edge map).
     pub(crate) fn occupied(&self, pixel: usize) -> bool {
         self.mask.occupied(pixel)
+    }
+
+    /// The orientation bins of the edges that run within [`ALONG_RAD`] of image direction
+    /// `dir` (and perhaps one bin more), for [`ImageEvidence::may_hold_across`].
+    pub(crate) fn bins_along(dir: Vector2<f64>) -> u32 {
+        EdgeMask::bins_along(dir)
+    }
+
+    /// Whether an edgel of one of `bins` may lie at a pixel nearest some point `u + offset *
+    /// normal` of a stretch along the normal, the stretch given by [`looks_across`]: `false`
+    /// only when none does.
+    pub(crate) fn may_hold_across(&self, u: &Point2<f64>, normal: &Vector2<f64>, looks: &[f64], bins: u32) -> bool {
+        looks.iter().any(|&offset| {
+            let q = u + normal * offset;
+            self.mask.any_near(q.x, q.y, bins)
+        })
     }
 
     /// The same edgels with other image lines.
@@ -491,7 +507,7 @@ impl EdgeMask {
         let width = std::f64::consts::PI / BINS;
         let gradient = rough_atan2(dir.x, -dir.y).rem_euclid(std::f64::consts::PI) / width;
         let reach = (ALONG_RAD + ROUGH_ATAN2_RAD) / width;
-        let (lo, hi) = ((gradient - reach).floor() as i64, (gradient + reach).floor() as i64);
+        let (lo, hi) = (floor_int(gradient - reach), floor_int(gradient + reach));
         (lo..=hi).fold(0, |m, b| m | 1 << b.rem_euclid(BINS as i64))
     }
 
@@ -541,6 +557,26 @@ fn edgel_along(edges: &EdgeMap, mask: &EdgeMask, x: f64, y: f64, dir: Vector2<f6
 
 /// How far (pixels, in x and in y) from a sample's pixel the edgel searches look.
 const SCAN_PX: usize = NEAR_PX.ceil() as usize;
+
+/// Where [`ImageEvidence::may_hold_across`] looks along the normal (pixels) for a stretch
+/// `reach` either side of a sample, from the middle out, where a sample's own edgel mostly lies.
+///
+/// The mask holds each edgel's bin at every pixel within [`SCAN_PX`] (2) of its own in x and
+/// y, and the nearest pixels of two points less than 2 px apart lie within 2 of each other; so
+/// looks spaced under 4 px along the normal, each standing for the stretch within half that
+/// either side, answer for the whole of it. (Just off the image, [`EdgeMask::any_near`] looks
+/// at the edge's pixels, which lie nearer every pixel in the image.)
+pub(crate) fn looks_across(reach: f64) -> Vec<f64> {
+    let count = ((2.0 * reach / LOOK_SPACING_PX).ceil() as usize).max(1);
+    let spacing = 2.0 * reach / count as f64;
+    let middle = (count - 1) / 2;
+    let outwards = |j: usize| if j % 2 == 1 { middle + j.div_ceil(2) } else { middle - j / 2 };
+    (0..count).map(outwards).map(|i| spacing * (i as f64 + 0.5) - reach).collect()
+}
+
+/// The greatest spacing (pixels) of [`looks_across`]: each look answers for the points
+/// within half of it, which must stay under [`SCAN_PX`].
+const LOOK_SPACING_PX: f64 = 3.8;
 
 /// The offsets of the pixels within [`SCAN_PX`] of a sample's, nearest first.
 const NEAREST_FIRST: [(i8, i8); (2 * SCAN_PX + 1) * (2 * SCAN_PX + 1)] = [
