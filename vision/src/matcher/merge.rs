@@ -27,6 +27,18 @@ pub fn locate_all(
     p: &MatchParams,
     image: Option<&ImageEvidence>,
 ) -> Vec<Located> {
+    // Run on a thread of the pool: each parallel step entered from outside it waits for a
+    // worker to wake, and the matcher takes a score of them.
+    rayon::scope(|_| locate_all_in_pool(models, scene, p, image))
+}
+
+/// [`locate_all`], on a thread of rayon's pool.
+fn locate_all_in_pool(
+    models: &[MatcherModel],
+    scene: &[Seg],
+    p: &MatchParams,
+    image: Option<&ImageEvidence>,
+) -> Vec<Located> {
     use rayon::prelude::*;
     let pairs = scene_pairs(scene, p);
     let mut searches = first_looks(models, scene, &pairs, p, image);
