@@ -26,13 +26,12 @@ pub(crate) fn fits_along(t: f64, frag: f64, m: f64, len: f64, tol: f64) -> bool 
 pub(crate) fn hypotheses(
     model: &MatcherModel,
     scene: &[Seg],
-    pairs: &[ScenePair],
+    pairs: &ScenePairs,
     views: &[Vec<FocusPair>],
     p: &MatchParams,
 ) -> (Vec<Scored>, Vec<Scored>) {
     use rayon::prelude::*;
     let free_lines = FreeLines::new(scene, &vec![true; scene.len()]);
-    let cells = packed_cells(pairs);
     // One subordinate matcher per characteristic view, in parallel.
     let per_view: Vec<_> = views
         .par_iter()
@@ -40,7 +39,7 @@ pub(crate) fn hypotheses(
             let mut seen =
                 Seen::new(model, p.min_support_fraction * model.total_length, RECORDED_PER_KEPT * p.hypotheses);
             let focus = FocusTable::new(focus, p);
-            for_each_hypothesis(model, scene, (pairs, &cells, &free_lines), &focus, p, &mut seen);
+            for_each_hypothesis(model, scene, (pairs, &free_lines), &focus, p, &mut seen);
             (seen.all, seen.flat.all)
         })
         .collect();
@@ -216,8 +215,27 @@ pub(crate) struct ScenePair {
     cell: [u32; 2],
 }
 
+/// The scene's seed pairs, with the same pairs by cell for the views to take theirs from.
+pub(crate) struct ScenePairs {
+    pairs: Vec<ScenePair>,
+    by_cell: PairsByCell,
+}
+
+impl std::ops::Deref for ScenePairs {
+    type Target = [ScenePair];
+    fn deref(&self) -> &[ScenePair] {
+        &self.pairs
+    }
+}
+
 /// Every ordered pair of scene lines long enough to seed and far enough from parallel.
-pub(crate) fn scene_pairs(scene: &[Seg], p: &MatchParams) -> Vec<ScenePair> {
+pub(crate) fn scene_pairs(scene: &[Seg], p: &MatchParams) -> ScenePairs {
+    let pairs = seed_pairs(scene, p);
+    ScenePairs { by_cell: PairsByCell::new(&pairs), pairs }
+}
+
+/// See [`scene_pairs`].
+fn seed_pairs(scene: &[Seg], p: &MatchParams) -> Vec<ScenePair> {
     let seeds: Vec<usize> = (0..scene.len()).filter(|&j| scene[j].len >= p.min_seed_length).collect();
     // Each unordered pair's relations worked out once (every search waits on them): swapped,
     // the angle and separation are the same and the closest approach's places trade over, bit
@@ -248,33 +266,83 @@ pub(crate) fn scene_pairs(scene: &[Seg], p: &MatchParams) -> Vec<ScenePair> {
     out
 }
 
-/// Each scene pair's [`FocusTable`] cell packed into one word, separation cell above angle
-/// cell (see [`FocusTable::holds`]).
-fn packed_cells(pairs: &[ScenePair]) -> Vec<u32> {
-    pairs.iter().map(|sp| sp.cell.map(|c| c.min(CELL_MAX)).iter().fold(0, |word, &c| word << 16 | c)).collect()
+/// The scene pairs (indices into the scene's pairs, in order) by their cell, laid out as a
+/// [`FocusTable`] of as many cells as they reach lays them out: a view's subordinate matcher
+/// takes those of the cells where it has focus pairs.
+pub(crate) struct PairsByCell {
+    /// Cells across separation and across angle.
+    cells: [u32; 2],
+    /// Where each cell's pairs begin in `listed` (and end where the next cell's begin).
+    starts: Vec<u32>,
+    listed: Vec<u32>,
 }
 
-/// The highest cell index across separation or angle that [`packed_cells`] holds (higher ones
-/// are packed as this, and no table has so many cells).
-const CELL_MAX: u32 = 0xffff;
+impl PairsByCell {
+    pub(crate) fn new(pairs: &[ScenePair]) -> PairsByCell {
+        let reach = |k: usize| pairs.iter().map(|sp| sp.cell[k] + 1).max().unwrap_or(0);
+        let cells = [reach(0), reach(1)];
+        let index = |sp: &ScenePair| (sp.cell[0] * cells[1] + sp.cell[1]) as usize;
+        // A counting sort: the pairs of each cell stay in order.
+        let mut starts = vec![0u32; (cells[0] * cells[1]) as usize + 1];
+        for sp in pairs {
+            starts[index(sp) + 1] += 1;
+        }
+        for c in 1..starts.len() {
+            starts[c] += starts[c - 1];
+        }
+        let mut next = starts.clone();
+        let mut listed = vec![0u32; pairs.len()];
+        for (i, sp) in pairs.iter().enumerate() {
+            listed[next[index(sp)] as usize] = i as u32;
+            next[index(sp)] += 1;
+        }
+        PairsByCell { cells, starts, listed }
+    }
+
+    /// The pairs of cell (`separation`, `angle`): none beyond the cells they reach.
+    fn of(&self, [separation, angle]: [u32; 2]) -> &[u32] {
+        if separation >= self.cells[0] || angle >= self.cells[1] {
+            return &[];
+        }
+        let cell = (separation * self.cells[1] + angle) as usize;
+        &self.listed[self.starts[cell] as usize..self.starts[cell + 1] as usize]
+    }
+}
+
+/// The scene pairs that fall in cells of `focus` holding a focus pair, in order (the floors
+/// of the places depend on it). A view's cells are mostly empty: each pair was once looked at
+/// in every view, and that was a twentieth of the matcher's instructions.
+fn pairs_in_view(pairs: &ScenePairs, focus: &FocusTable) -> impl Iterator<Item = usize> {
+    let mut chosen = vec![0u64; pairs.len().div_ceil(64)];
+    for cell in focus.held_cells() {
+        for &i in pairs.by_cell.of(cell) {
+            chosen[i as usize / 64] |= 1 << (i % 64);
+        }
+    }
+    chosen.into_iter().enumerate().flat_map(|(w, mut word)| {
+        std::iter::from_fn(move || {
+            (word != 0).then(|| {
+                let bit = word.trailing_zeros() as usize;
+                word &= word - 1;
+                w * 64 + bit
+            })
+        })
+    })
+}
 
 /// Hands `sink` each hypothesis from a scene pair congruent with a focus pair, with its support
-/// (those that cannot beat the sink's floor are left unscored and unseen). `cells` are the
-/// pairs' cells packed ([`packed_cells`]).
+/// (those that cannot beat the sink's floor are left unscored and unseen).
 pub(crate) fn for_each_hypothesis(
     model: &MatcherModel,
     scene: &[Seg],
-    (pairs, cells, free_lines): (&[ScenePair], &[u32], &FreeLines),
+    (pairs, free_lines): (&ScenePairs, &FreeLines),
     focus: &FocusTable,
     p: &MatchParams,
     sink: &mut Seen,
 ) {
     let mut near = NearLines::default();
     let tolerance = p.separation_tolerance;
-    // Most scene pairs fall in cells of the view that hold no focus pair: those are passed
-    // over on their packed cells alone (an eighth of the pairs' own size; see
-    // [`FocusTable::holds`]), in order, as the floors of the places depend on it.
-    for (sp, _) in pairs.iter().zip(cells).filter(|&(_, &cell)| focus.holds(cell)) {
+    for sp in pairs_in_view(pairs, focus).map(|i| &pairs[i]) {
         let (sj, sl) = (&scene[sp.j], &scene[sp.l]);
         let (tj, tl) = (sp.at_j, sp.at_l);
         {
@@ -376,8 +444,6 @@ pub(crate) struct FocusTable<'f> {
     listed: Vec<u16>,
     /// Cells across separation and across angle.
     cells: [u32; 2],
-    /// A bit per cell (row-major, as `starts`), set where the cell holds a focus pair.
-    held: Vec<u64>,
 }
 
 impl<'f> FocusTable<'f> {
@@ -408,24 +474,14 @@ impl<'f> FocusTable<'f> {
             listed.extend(cell);
         }
         starts.push(listed.len() as u32);
-        debug_assert!(cells.iter().all(|&c| c <= CELL_MAX), "{cells:?} cells: too many to pack");
-        let mut held = vec![0u64; starts.len().div_ceil(64)];
-        for (cell, ends) in starts.windows(2).enumerate() {
-            if ends[0] < ends[1] {
-                held[cell / 64] |= 1 << (cell % 64);
-            }
-        }
-        FocusTable { focus, starts, listed, cells, held }
+        FocusTable { focus, starts, listed, cells }
     }
 
-    /// Whether the cell packed in `cell` ([`packed_cells`]) holds a focus pair.
-    fn holds(&self, cell: u32) -> bool {
-        let (s, a) = (cell >> 16, cell & CELL_MAX);
-        if s >= self.cells[0] || a >= self.cells[1] {
-            return false;
-        }
-        let cell = (s * self.cells[1] + a) as usize;
-        self.held[cell / 64] & (1 << (cell % 64)) != 0
+    /// The cells (separation, angle) that hold a focus pair.
+    fn held_cells(&self) -> impl Iterator<Item = [u32; 2]> + '_ {
+        let per_row = self.cells[1] as usize;
+        let held = self.starts.windows(2).enumerate().filter(|(_, ends)| ends[0] < ends[1]);
+        held.map(move |(c, _)| [(c / per_row) as u32, (c % per_row) as u32])
     }
 
     /// The focus pairs of scene pair `sp`'s cell, in order: every one within the tolerances of

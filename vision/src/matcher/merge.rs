@@ -10,7 +10,7 @@
 //! full where the check dropped a report, else on the starts the first image look gave up for
 //! want of edgels, judged on the edges the light lets show ([`super::contrast`]).
 
-use super::hypotheses::{ScenePair, scene_pairs};
+use super::hypotheses::{ScenePairs, scene_pairs};
 use super::model::{Located, MatchParams, MatcherModel, Seg};
 use super::occlusion::{MIN_IN_VIEW, Solid};
 use super::search::{Search, locate_from};
@@ -236,7 +236,7 @@ fn image_look(
 fn first_looks(
     models: &[MatcherModel],
     scene: &[Seg],
-    pairs: &[ScenePair],
+    pairs: &ScenePairs,
     p: &MatchParams,
     image: Option<&ImageEvidence>,
 ) -> Vec<Search> {

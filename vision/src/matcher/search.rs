@@ -2,7 +2,7 @@
 //! the best candidate verified and kept, then further instances from the same hypotheses
 //! rescored on the lines still free.
 
-use super::hypotheses::{ScenePair, hypotheses, rescored, scene_pairs};
+use super::hypotheses::{ScenePairs, hypotheses, rescored, scene_pairs};
 use super::model::{Located, MatchParams, MatcherModel, Seg};
 use super::ranking::{Candidate, best_of, image_support_needed, in_image, refine_among};
 use super::support::{FreeLines, model_lines_of};
@@ -31,7 +31,7 @@ pub(crate) struct Search {
 pub(crate) fn locate_from(
     model: &MatcherModel,
     scene: &[Seg],
-    pairs: &[ScenePair],
+    pairs: &ScenePairs,
     p: &MatchParams,
     image: Option<&ImageEvidence>,
 ) -> Search {

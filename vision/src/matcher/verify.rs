@@ -518,6 +518,7 @@ impl EdgeMask {
 
     /// Whether an edgel of one of `bins` lies in the neighbourhood [`edgel_along`] searches
     /// from image point (`x`, `y`).
+    #[inline]
     fn any_near(&self, x: f64, y: f64, bins: u32) -> bool {
         // Just off the image the search still reaches its edge, whose pixels' bits cover it.
         let px = nearest_px(x).clamp(0, self.width as i64 - 1) as usize;
