@@ -25,13 +25,20 @@ impl GreyImage {
 /// take the nearest pixel of every sample, and those calls were a tenth of its time. Rounds
 /// half away from zero as `round` does; `x - trunc(x)` is exact below 2^52.
 pub fn nearest_px(x: f64) -> i64 {
+    // Every value from 2^52 up is whole (and the infinities and NaN go as the cast takes them):
+    // below, the cast cannot saturate, nor the step overflow.
+    if x.abs() >= WHOLE_FROM {
+        return x as i64;
+    }
     let towards_zero = x as i64;
     let fraction = x - towards_zero as f64;
     // Without branches: which way a sample's fraction falls is a coin toss, and a mispredicted
     // branch costs more than the comparisons.
-    let step = i64::from(fraction >= 0.5) - i64::from(fraction <= -0.5);
-    towards_zero.saturating_add(step)
+    towards_zero + i64::from(fraction >= 0.5) - i64::from(fraction <= -0.5)
 }
+
+/// 2^52: from here up every `f64` is a whole number.
+const WHOLE_FROM: f64 = 4_503_599_627_370_496.0;
 
 /// `x.floor() as i64`, without the call to the C library's `floor` (see [`nearest_px`]): the
 /// matcher takes the floor of a place for every hypothesis it records and of two angles for
@@ -47,10 +54,13 @@ mod tests {
     use super::*;
 
     /// The nearest pixel is `round`'s, halves (away from zero), negatives, the values either
-    /// side of a half and the far ends included.
+    /// side of a half, either side of 2^52, the far ends, the infinities and NaN included.
     #[test]
     fn the_nearest_pixel_is_the_one_round_gives() {
         let mut values = vec![0.0, -0.0, 0.5, -0.5, 1.5, -1.5, 2.5, 511.5, -2.5, 1e15 + 0.5, f64::MAX, f64::MIN];
+        let whole_from = 2f64.powi(52);
+        values.extend([whole_from, -whole_from, whole_from.next_down(), -whole_from.next_down(), 9.3e18, -9.3e18]);
+        values.extend([f64::INFINITY, f64::NEG_INFINITY, f64::NAN]);
         for k in -2000..2000 {
             let x = k as f64 * 0.25;
             values.extend([x, x.next_up(), x.next_down()]);

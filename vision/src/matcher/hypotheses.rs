@@ -282,20 +282,10 @@ impl PairsByCell {
         let reach = |k: usize| pairs.iter().map(|sp| sp.cell[k] + 1).max().unwrap_or(0);
         let cells = [reach(0), reach(1)];
         let index = |sp: &ScenePair| (sp.cell[0] * cells[1] + sp.cell[1]) as usize;
-        // A counting sort: the pairs of each cell stay in order.
-        let mut starts = vec![0u32; (cells[0] * cells[1]) as usize + 1];
-        for sp in pairs {
-            starts[index(sp) + 1] += 1;
-        }
-        for c in 1..starts.len() {
-            starts[c] += starts[c - 1];
-        }
-        let mut next = starts.clone();
-        let mut listed = vec![0u32; pairs.len()];
-        for (i, sp) in pairs.iter().enumerate() {
-            listed[next[index(sp)] as usize] = i as u32;
-            next[index(sp)] += 1;
-        }
+        let (starts, listed) = laid_out_by_cell(
+            (cells[0] * cells[1]) as usize,
+            pairs.iter().enumerate().map(|(i, sp)| (index(sp), i as u32)).collect(),
+        );
         PairsByCell { cells, starts, listed }
     }
 
@@ -458,22 +448,15 @@ impl<'f> FocusTable<'f> {
         };
         let separations = focus.iter().map(|f| *span(f).0.end() + 1).max().unwrap_or(0);
         let cells = [separations, cell_of(std::f64::consts::FRAC_PI_2 + reach[1], widths[1]) + 1];
-        let mut per_cell = vec![Vec::new(); (cells[0] * cells[1]) as usize];
+        // Each focus pair into every cell of its span.
+        let mut items = Vec::with_capacity(focus.len() * 4);
         for (k, f) in focus.iter().enumerate() {
             let (seps, angles) = span(f);
             for s in seps {
-                for a in angles.clone() {
-                    per_cell[(s * cells[1] + a) as usize].push(k as u16);
-                }
+                items.extend(angles.clone().map(|a| ((s * cells[1] + a) as usize, k as u16)));
             }
         }
-        let mut starts = Vec::with_capacity(per_cell.len() + 1);
-        let mut listed = Vec::new();
-        for cell in per_cell {
-            starts.push(listed.len() as u32);
-            listed.extend(cell);
-        }
-        starts.push(listed.len() as u32);
+        let (starts, listed) = laid_out_by_cell((cells[0] * cells[1]) as usize, items);
         FocusTable { focus, starts, listed, cells }
     }
 
@@ -496,6 +479,25 @@ impl<'f> FocusTable<'f> {
         };
         listed.iter().map(|&k| &self.focus[k as usize])
     }
+}
+
+/// `items` (cell, item) laid out by cell, those of a cell in the order given (a counting
+/// sort): where each of `cells` cells' items begin in the list (and end where the next cell's
+/// begin), and the list.
+fn laid_out_by_cell<T: Copy + Default>(cells: usize, items: Vec<(usize, T)>) -> (Vec<u32>, Vec<T>) {
+    let mut starts = vec![0u32; cells + 1];
+    for &(cell, _) in &items {
+        starts[cell + 1] += 1;
+    }
+    for c in 1..starts.len() {
+        starts[c] += starts[c - 1];
+    }
+    let (mut next, mut listed) = (starts.clone(), vec![T::default(); items.len()]);
+    for (cell, item) in items {
+        listed[next[cell] as usize] = item;
+        next[cell] += 1;
+    }
+    (starts, listed)
 }
 
 /// A [`FocusTable`]'s cells per tolerance, across separation and across angle.
