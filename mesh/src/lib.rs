@@ -11,11 +11,13 @@
 //!   model matcher sees of a model.
 //! - [`mass`]: volume, centre of mass and inertia of a closed mesh at a density.
 //! - [`camera`]: the pinhole camera and the stereo calibration file the vision pipeline reads.
+//! - [`distortion`]: lens distortion in the OpenCV/ROS `plumb_bob` model, and its inverse.
 //! - [`pose`]: how transforms are written in files (`a_from_b`, metres, quaternions).
 //!
 //! Units are metres, radians and kilograms inside; model files are written in millimetres.
 
 pub mod camera;
+pub mod distortion;
 pub mod extrude;
 pub mod library;
 pub mod mass;

@@ -24,9 +24,38 @@ pub struct ModelSpec {
     pub density_kg_m3: f64,
     /// Diffuse reflectance, 0-1.
     pub albedo: f64,
+    /// How glossy the surface is, for the realistic renderer only (the matcher never reads it).
+    #[serde(default)]
+    pub finish: FinishSpec,
     pub shape: ShapeSpec,
     #[serde(default)]
     pub grasps: Vec<GraspSpec>,
+}
+
+/// A surface's gloss: `specular` is the fraction of light reflected glossily (the rest
+/// diffusely, times the albedo), `roughness` how wide the highlight is (0 a mirror, 1 nearly
+/// diffuse). Left out: a matte plastic's 0.04 and 0.5.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FinishSpec {
+    #[serde(default = "default_specular")]
+    pub specular: f64,
+    #[serde(default = "default_roughness")]
+    pub roughness: f64,
+}
+
+fn default_specular() -> f64 {
+    0.04
+}
+
+fn default_roughness() -> f64 {
+    0.5
+}
+
+impl Default for FinishSpec {
+    fn default() -> Self {
+        FinishSpec { specular: default_specular(), roughness: default_roughness() }
+    }
 }
 
 /// How a model's solid is given.
@@ -76,6 +105,8 @@ pub struct Model {
     pub name: String,
     pub description: String,
     pub mesh: TriMesh,
+    /// The surface's gloss, for rendering.
+    pub finish: FinishSpec,
     pub collision: Collision,
     pub wireframe: Vec<Segment3>,
     /// Lines of the surface's pattern (the flag's checker), seen as edges though no solid edge
@@ -95,6 +126,13 @@ impl Model {
         }
         if spec.density_kg_m3.is_nan() || spec.density_kg_m3 <= 0.0 {
             return Err(format!("density_kg_m3 must be positive, got {}", spec.density_kg_m3));
+        }
+        let f = spec.finish;
+        if !((0.0..=1.0).contains(&f.specular) && (0.02..=1.0).contains(&f.roughness)) {
+            return Err(format!(
+                "finish: specular must be within 0-1 and roughness within 0.02-1, got {} and {}",
+                f.specular, f.roughness
+            ));
         }
         let albedo = spec.albedo as f32;
         let (mesh, collision) = match &spec.shape {
@@ -135,6 +173,7 @@ impl Model {
             mass: mass_properties(&mesh, spec.density_kg_m3),
             collision,
             mesh,
+            finish: spec.finish,
             grasps,
         })
     }

@@ -7,8 +7,14 @@
 //! - [`scene`]: a scenario (world + model library) settled into a [`scene::Scene`]: the fixed
 //!   boxes and every object's ground-truth pose; it builds on the cell and the arm.
 //! - [`rig`]: the stereo rig of a world as calibrated pinhole cameras.
-//! - [`render`]: the CPU renderer: anti-aliased, shaded, noisy 8-bit grey images, with depth
-//!   and object-id maps.
+//! - [`realism`]: the `realism` preset and its effects' specs: lenses, sensors, mountings,
+//!   lamps, finishes, the arm as built; the cameras as built ([`realism::RigAsBuilt`]).
+//! - [`render`]: the CPU rasteriser: anti-aliased, shaded, noisy 8-bit grey images, with depth
+//!   and object-id maps (the ideal preset's renderer as it was), and radiance for the realistic one.
+//! - [`lighting`]: lamps with fall-off and soft shadows (shadow maps), sky, gloss, texture.
+//! - [`optics`]: lens distortion (a virtual pinhole resampled), depth-dependent blur, vignetting.
+//! - [`sensor`]: shot and read noise, fixed patterns, gain, black level, response, 8 bits.
+//! - [`imaging`]: the one entry point that renders the cell by its preset.
 //! - [`record`]: `scene.json`, the calibration and ground truth written next to the images.
 //! - [`shape_mesh`]: colliders' primitives as triangle meshes, to draw the arm.
 //! - [`convert`]: nalgebra <-> rapier (glam) conversions, kept in one place.
@@ -16,6 +22,11 @@
 //! Frames: `world` has its origin at the centre of the table top, `z` up.
 
 pub mod arm;
+pub mod imaging;
+pub mod lighting;
+pub mod optics;
+pub mod realism;
+pub mod sensor;
 pub mod convert;
 pub mod physics;
 pub mod record;

@@ -9,6 +9,7 @@
 //! Written by hand: the crates that rasterise either draw 2D paths without a z-buffer or need a
 //! GPU, and this one must be exact about where an edge lands.
 
+use crate::realism::Finish;
 use mesh::{PinholeCamera, StereoCalibration, TriMesh};
 use nalgebra::{Point3, Vector3};
 use rand::{SeedableRng, rngs::Xoshiro256PlusPlus};
@@ -47,13 +48,16 @@ impl From<&crate::world::LightSpec> for Light {
     }
 }
 
-/// A world-space triangle ready to draw: corners, brightness (0-1) and id-map value.
+/// A world-space triangle ready to draw: corners, brightness (0-1) under the ideal light,
+/// id-map value, and what the realistic renderer shades it from (albedo and finish).
 #[derive(Debug, Clone, Copy)]
-struct ShadedTriangle {
-    corners: [Point3<f64>; 3],
-    normal: Vector3<f64>,
+pub(crate) struct ShadedTriangle {
+    pub(crate) corners: [Point3<f64>; 3],
+    pub(crate) normal: Vector3<f64>,
     brightness: f32,
-    id: u16,
+    pub(crate) id: u16,
+    pub(crate) albedo: f32,
+    pub(crate) finish: Finish,
 }
 
 /// Everything to draw, shaded once (Lambertian shading does not depend on the viewpoint).
@@ -69,14 +73,20 @@ pub const TOOL_ID: u32 = 999;
 
 #[derive(Debug, Clone, Default)]
 pub struct RenderScene {
-    triangles: Vec<ShadedTriangle>,
+    pub(crate) triangles: Vec<ShadedTriangle>,
 }
 
 impl RenderScene {
     /// Shades world-space meshes, each tagged with its id-map value.
     pub fn new(meshes: impl IntoIterator<Item = (u32, TriMesh)>, light: &Light) -> RenderScene {
+        Self::with_finishes(meshes.into_iter().map(|(id, m)| (id, m, Finish::MATTE)), light)
+    }
+
+    /// Shades world-space meshes, each tagged with its id-map value and its surface's finish
+    /// (which only the realistic renderer reads).
+    pub fn with_finishes(meshes: impl IntoIterator<Item = (u32, TriMesh, Finish)>, light: &Light) -> RenderScene {
         let mut triangles = Vec::new();
-        for (id, mesh) in meshes {
+        for (id, mesh, finish) in meshes {
             for t in 0..mesh.triangles.len() {
                 let normal = mesh.face_normal(t);
                 let lambert = normal.dot(&light.towards_light).max(0.0);
@@ -86,10 +96,17 @@ impl RenderScene {
                     normal,
                     brightness: brightness.clamp(0.0, 1.0) as f32,
                     id: id as u16,
+                    albedo: mesh.albedo[t],
+                    finish,
                 });
             }
         }
         RenderScene { triangles }
+    }
+
+    /// Every triangle's corners, in the world: what casts shadows.
+    pub fn corners(&self) -> Vec<[Point3<f64>; 3]> {
+        self.triangles.iter().map(|t| t.corners).collect()
     }
 }
 
@@ -115,7 +132,11 @@ struct ScreenTriangle {
     inv_z: [f64; 3],
     bbox: [i32; 4], // x0, y0, x1, y1 inclusive pixel range
     nearest_inv_z: f64,
-    brightness: f32,
+    /// What the samples it covers keep: the ideal renderer's brightness, or, for the
+    /// realistic renderer, the bits of `1 +` its index in the drawing order (0 is nothing).
+    payload: f32,
+    /// Its triangle in the [`RenderScene`].
+    source: u32,
     id: u16,
 }
 
@@ -123,32 +144,11 @@ struct ScreenTriangle {
 /// from `seed`.
 pub fn render(scene: &RenderScene, cam: &PinholeCamera, noise_sigma: f64, seed: u64) -> Frame {
     let (w, h) = (cam.width as usize, cam.height as usize);
-    let mut tris = project(scene, cam);
-    // Nearest first, so that tiles learn early what hides the rest (see `draw_tile`).
-    tris.sort_by(|a, b| b.nearest_inv_z.total_cmp(&a.nearest_inv_z));
-    let (tiles_x, tiles_y) = (w.div_ceil(TILE), h.div_ceil(TILE));
-    let mut bins: Vec<Vec<u32>> = vec![Vec::new(); tiles_x * tiles_y];
-    for (i, t) in tris.iter().enumerate() {
-        let [x0, y0, x1, y1] = t.bbox;
-        for ty in y0 as usize / TILE..=y1 as usize / TILE {
-            for tx in x0 as usize / TILE..=x1 as usize / TILE {
-                bins[ty * tiles_x + tx].push(i as u32);
-            }
-        }
-    }
-    let tiles: Vec<TileOut> = (0..tiles_x * tiles_y)
-        .into_par_iter()
-        .map_init(
-            || vec![NOTHING; TILE * TILE],
-            |pixels, k| {
-                let (tx, ty) = (k % tiles_x, k / tiles_x);
-                let area =
-                    TileArea { x0: tx * TILE, y0: ty * TILE, w: TILE.min(w - tx * TILE), h: TILE.min(h - ty * TILE) };
-                let tile_seed = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(k as u64);
-                draw_tile(&tris, &bins[k], area, noise_sigma, tile_seed, pixels)
-            },
-        )
-        .collect();
+    let tris = project_sorted(scene, cam);
+    let tiles = draw_tiles(&tris, w, h, |tris, area, pixels, k| {
+        let tile_seed = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(k as u64);
+        resolve(tris, area, pixels, noise_sigma, tile_seed)
+    });
     let mut frame = Frame { width: w, height: h, image: vec![0; w * h], depth: vec![0.0; w * h], ids: vec![0; w * h] };
     for t in &tiles {
         for row in 0..t.area.h {
@@ -159,6 +159,129 @@ pub fn render(scene: &RenderScene, cam: &PinholeCamera, noise_sigma: f64, seed: 
         }
     }
     frame
+}
+
+/// The scene's triangles in `cam`'s pixels, nearest first (so that tiles learn early what
+/// hides the rest, see [`draw_tile`]).
+fn project_sorted(scene: &RenderScene, cam: &PinholeCamera) -> Vec<ScreenTriangle> {
+    let mut tris = project(scene, cam);
+    tris.sort_by(|a, b| b.nearest_inv_z.total_cmp(&a.nearest_inv_z));
+    tris
+}
+
+/// Bins `tris` to tiles, draws each tile's samples and hands them to `resolve`, tile by tile
+/// in parallel; returns what `resolve` made of each tile, in the tiles' order.
+fn draw_tiles<T: Send>(
+    tris: &[ScreenTriangle],
+    w: usize,
+    h: usize,
+    resolve: impl Fn(&[ScreenTriangle], TileArea, &[PixelSamples], usize) -> T + Sync,
+) -> Vec<T> {
+    let (tiles_x, tiles_y) = (w.div_ceil(TILE), h.div_ceil(TILE));
+    let mut bins: Vec<Vec<u32>> = vec![Vec::new(); tiles_x * tiles_y];
+    for (i, t) in tris.iter().enumerate() {
+        let [x0, y0, x1, y1] = t.bbox;
+        for ty in y0 as usize / TILE..=y1 as usize / TILE {
+            for tx in x0 as usize / TILE..=x1 as usize / TILE {
+                bins[ty * tiles_x + tx].push(i as u32);
+            }
+        }
+    }
+    (0..tiles_x * tiles_y)
+        .into_par_iter()
+        .map_init(
+            || vec![NOTHING; TILE * TILE],
+            |pixels, k| {
+                let (tx, ty) = (k % tiles_x, k / tiles_x);
+                let area =
+                    TileArea { x0: tx * TILE, y0: ty * TILE, w: TILE.min(w - tx * TILE), h: TILE.min(h - ty * TILE) };
+                draw_tile(tris, &bins[k], area, pixels);
+                resolve(tris, area, pixels, k)
+            },
+        )
+        .collect()
+}
+
+/// What the virtual pinhole of a realistic camera saw: radiance (in brightness units) and, at
+/// each pixel centre, the scene triangle there.
+pub(crate) struct RadianceImage {
+    pub(crate) width: usize,
+    pub(crate) height: usize,
+    pub(crate) radiance: Vec<f32>,
+    /// Index into the [`RenderScene`]'s triangles, or `u32::MAX` for nothing.
+    pub(crate) centre: Vec<u32>,
+}
+
+/// Renders `scene` through `cam` as radiance, each pixel's covered samples grouped by the
+/// triangle they see and each triangle shaded once, at the point of its plane on the ray
+/// through the pixel's centre: `shade(triangle, world point)`.
+pub(crate) fn render_radiance(
+    scene: &RenderScene,
+    cam: &PinholeCamera,
+    shade: &(dyn Fn(&ShadedTriangle, &Point3<f64>) -> f32 + Sync),
+) -> RadianceImage {
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    let mut tris = project_sorted(scene, cam);
+    for (i, t) in tris.iter_mut().enumerate() {
+        t.payload = f32::from_bits(i as u32 + 1);
+    }
+    let tiles = draw_tiles(&tris, w, h, |tris, area, pixels, _| resolve_radiance(scene, cam, tris, area, pixels, shade));
+    let mut out = RadianceImage { width: w, height: h, radiance: vec![0.0; w * h], centre: vec![u32::MAX; w * h] };
+    for (area, radiance, centre) in &tiles {
+        for row in 0..area.h {
+            let (src, dst) = (row * area.w, (area.y0 + row) * w + area.x0);
+            out.radiance[dst..dst + area.w].copy_from_slice(&radiance[src..src + area.w]);
+            out.centre[dst..dst + area.w].copy_from_slice(&centre[src..src + area.w]);
+        }
+    }
+    out
+}
+
+/// One tile's radiance: each pixel's samples counted by triangle, each triangle shaded once.
+fn resolve_radiance(
+    scene: &RenderScene,
+    cam: &PinholeCamera,
+    tris: &[ScreenTriangle],
+    area: TileArea,
+    pixels: &[PixelSamples],
+    shade: &(dyn Fn(&ShadedTriangle, &Point3<f64>) -> f32 + Sync),
+) -> (TileArea, Vec<f32>, Vec<u32>) {
+    let n = area.w * area.h;
+    let (mut radiance, mut centre) = (vec![0.0f32; n], vec![u32::MAX; n]);
+    let eye = cam.centre();
+    for (p, px) in pixels.iter().enumerate() {
+        let (u, v) = ((area.x0 + p % area.w) as f64, (area.y0 + p / area.w) as f64);
+        let (_, dir) = cam.ray_world(u, v);
+        let mut seen: [(u32, u32); SAMPLES] = [(0, 0); SAMPLES];
+        let mut kinds = 0;
+        for s in px.shade {
+            let bits = s.to_bits();
+            if bits == 0 {
+                continue;
+            }
+            match seen[..kinds].iter_mut().find(|(b, _)| *b == bits) {
+                Some((_, count)) => *count += 1,
+                None => {
+                    seen[kinds] = (bits, 1);
+                    kinds += 1;
+                }
+            }
+        }
+        let mut sum = 0.0f32;
+        for &(bits, count) in &seen[..kinds] {
+            let t = &scene.triangles[tris[bits as usize - 1].source as usize];
+            // The pixel centre's ray meets the triangle's plane (beside the triangle, for a
+            // pixel it only partly covers: the plane's shading carries on smoothly).
+            let along = t.normal.dot(&(t.corners[0] - eye)) / t.normal.dot(&dir);
+            let point = if along.is_finite() && along > 0.0 { eye + dir * along } else { t.corners[0] };
+            sum += count as f32 * shade(t, &point);
+        }
+        radiance[p] = sum / SAMPLES as f32;
+        if px.centre != NO_TRIANGLE {
+            centre[p] = tris[px.centre as usize].source;
+        }
+    }
+    (area, radiance, centre)
 }
 
 /// Renders both cameras of the rig at once; the right camera's noise uses the next seed.
@@ -175,7 +298,7 @@ fn project(scene: &RenderScene, cam: &PinholeCamera) -> Vec<ScreenTriangle> {
     let cam_from_world = cam.cam_from_world();
     let centre = cam.centre();
     let mut out = Vec::with_capacity(scene.triangles.len());
-    for t in &scene.triangles {
+    for (source, t) in scene.triangles.iter().enumerate() {
         if t.normal.dot(&(t.corners[0] - centre)) >= 0.0 {
             continue; // seen from behind: a closed solid's far side
         }
@@ -187,7 +310,7 @@ fn project(scene: &RenderScene, cam: &PinholeCamera) -> Vec<ScreenTriangle> {
         let pixels: Vec<[f64; 3]> =
             polygon.iter().map(|p| [cam.fx * p.x / p.z + cam.cx, cam.fy * p.y / p.z + cam.cy, 1.0 / p.z]).collect();
         for k in 1..pixels.len().saturating_sub(1) {
-            if let Some(s) = setup([pixels[0], pixels[k], pixels[k + 1]], cam, t) {
+            if let Some(s) = setup([pixels[0], pixels[k], pixels[k + 1]], cam, t, source as u32) {
                 out.push(s);
             }
         }
@@ -211,7 +334,7 @@ fn clip_near(tri: &[Point3<f64>; 3]) -> Vec<Point3<f64>> {
     out
 }
 
-fn setup(v: [[f64; 3]; 3], cam: &PinholeCamera, t: &ShadedTriangle) -> Option<ScreenTriangle> {
+fn setup(v: [[f64; 3]; 3], cam: &PinholeCamera, t: &ShadedTriangle, source: u32) -> Option<ScreenTriangle> {
     let area2 = (v[1][0] - v[0][0]) * (v[2][1] - v[0][1]) - (v[2][0] - v[0][0]) * (v[1][1] - v[0][1]);
     if area2.abs() < 1e-12 {
         return None;
@@ -247,13 +370,14 @@ fn setup(v: [[f64; 3]; 3], cam: &PinholeCamera, t: &ShadedTriangle) -> Option<Sc
         inv_z: [p, q, r],
         bbox: bbox.map(|c| c as i32),
         nearest_inv_z,
-        brightness: t.brightness,
+        payload: t.brightness,
+        source,
         id: t.id,
     })
 }
 
 #[derive(Debug, Clone, Copy)]
-struct TileArea {
+pub(crate) struct TileArea {
     x0: usize,
     y0: usize,
     w: usize,
@@ -313,17 +437,9 @@ impl TilePlanes {
     }
 }
 
-/// Rasterises the triangles binned to one tile (nearest first), then resolves samples into
-/// pixels. Once a triangle has covered the whole tile, any later one lying wholly behind it is
+/// Rasterises the triangles binned to one tile (nearest first) into its samples. Once a triangle has covered the whole tile, any later one lying wholly behind it is
 /// skipped: that is what keeps the hidden floor under the table from costing a full pass.
-fn draw_tile(
-    tris: &[ScreenTriangle],
-    binned: &[u32],
-    area: TileArea,
-    noise_sigma: f64,
-    seed: u64,
-    pixels: &mut Vec<PixelSamples>,
-) -> TileOut {
+fn draw_tile(tris: &[ScreenTriangle], binned: &[u32], area: TileArea, pixels: &mut Vec<PixelSamples>) {
     let offsets = sample_offsets();
     pixels.clear();
     pixels.resize(area.w * area.h, NOTHING);
@@ -348,7 +464,6 @@ fn draw_tile(
             occluded_beyond = occluded_beyond.max(corner_z.into_iter().fold(f32::MAX, f32::min));
         }
     }
-    resolve(tris, area, pixels, noise_sigma, seed)
 }
 
 /// Draws one triangle into a tile's samples; `whole` when it covers every sample of the tile.
@@ -362,7 +477,7 @@ fn rasterise(pixels: &mut [PixelSamples], t: &ScreenTriangle, ti: u32, pl: &Tile
             let zc = pl.inv_z_at(x, y);
             let p = &mut pixels[(py - area.y0) * area.w + (px - area.x0)];
             if whole {
-                cover_all(p, zc, &pl.inv_z_at_sample, t.brightness);
+                cover_all(p, zc, &pl.inv_z_at_sample, t.payload);
                 if zc > p.centre_inv_z {
                     p.centre_inv_z = zc;
                     p.centre = ti;
@@ -374,9 +489,9 @@ fn rasterise(pixels: &mut [PixelSamples], t: &ScreenTriangle, ti: u32, pl: &Tile
                 continue;
             }
             if (0..3).all(|i| ec[i] >= pl.reach[i]) {
-                cover_all(p, zc, &pl.inv_z_at_sample, t.brightness);
+                cover_all(p, zc, &pl.inv_z_at_sample, t.payload);
             } else {
-                cover_some(p, zc, pl, ec, t.brightness);
+                cover_some(p, zc, pl, ec, t.payload);
             }
             if ec.iter().all(|&e| e >= 0.0) && zc > p.centre_inv_z {
                 p.centre_inv_z = zc;

@@ -162,6 +162,22 @@ impl Scene {
         let arm = self.arm.iter().enumerate().map(|(k, (_, m))| (crate::render::arm_link_id(k), m.clone()));
         statics.chain(objects).chain(arm)
     }
+
+    /// The scene shaded for drawing by `imaging`: every surface with its finish (the parts'
+    /// albedos varied by this scene's seed, with that effect on).
+    pub fn render_scene(&self, library: &Library, imaging: &crate::imaging::Imaging) -> crate::render::RenderScene {
+        let statics = self.statics.iter().map(|b| (0, b.mesh(), imaging.static_finish(b)));
+        let objects = self.objects.iter().map(|o| {
+            let model = &library.models[&o.model];
+            (o.id, model.mesh.transformed(&o.world_from_model), imaging.object_finish(model, o.id, self.seed))
+        });
+        let arm = self
+            .arm
+            .iter()
+            .enumerate()
+            .map(|(k, (_, m))| (crate::render::arm_link_id(k), m.clone(), crate::imaging::ARM_FINISH));
+        imaging.scene(statics.chain(objects).chain(arm))
+    }
 }
 
 /// Drop poses: the placed objects as written, then clutter at random positions over the region

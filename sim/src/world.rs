@@ -3,6 +3,7 @@
 //!
 //! A malformed file is rejected with a [`WorldError`] naming the file, the line and the field.
 
+use crate::realism::{ArmAsBuiltSpec, Effects, EffectsSpec, LampSpec, LensSpec, MountingSpec, Preset, SensorSpec};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
@@ -15,6 +16,19 @@ pub struct WorldFile {
     /// The seed of every random choice (clutter poses, sensor noise); `--seed` overrides it.
     #[serde(default)]
     pub seed: u64,
+    /// How real the cell is: `"realistic"` (the default) or `"ideal"` (the first simulation's
+    /// cell, its images bit for bit); see [`crate::realism`].
+    #[serde(default)]
+    pub realism: Preset,
+    /// Each effect switched on its own, over the preset.
+    #[serde(default)]
+    pub effects: EffectsSpec,
+    /// Seed of the cell as built (camera mounting, sensors' fixed patterns, the arm's offsets):
+    /// the same cell whatever the scene's seed.
+    #[serde(default = "one_u64")]
+    pub as_built_seed: u64,
+    /// Lamps of the realistic cell; absent, one lamp in the direction of `[light]`.
+    pub lamps: Option<Vec<LampSpec>>,
     /// Folder of model files, relative to the world file; the project's `mesh/models` if absent.
     pub library: Option<PathBuf>,
     pub table: TableSpec,
@@ -46,6 +60,17 @@ pub struct TableSpec {
     pub albedo: f64,
     #[serde(default = "default_floor_albedo")]
     pub floor_albedo: f64,
+    /// Relative albedo variation of the top's faint texture (realistic preset).
+    #[serde(default = "default_table_texture")]
+    pub texture: f64,
+}
+
+fn default_table_texture() -> f64 {
+    0.06
+}
+
+fn one_u64() -> u64 {
+    1
 }
 
 fn default_floor_albedo() -> f64 {
@@ -89,6 +114,12 @@ pub struct CameraSpec {
     pub look_at_m: [f64; 3],
     #[serde(default = "default_up")]
     pub up: [f64; 3],
+    /// The lens (realistic preset); each value has a default.
+    pub lens: Option<LensSpec>,
+    /// The sensor (realistic preset); each value has a default.
+    pub sensor: Option<SensorSpec>,
+    /// How far the camera is mounted off this pose (realistic preset).
+    pub mounting: Option<MountingSpec>,
 }
 
 fn default_resolution() -> [u32; 2] {
@@ -182,6 +213,8 @@ pub struct RobotSpec {
     pub base_position_m: [f64; 3],
     #[serde(default)]
     pub base_yaw_deg: f64,
+    /// The arm as built (realistic preset); each value has a default.
+    pub as_built: Option<ArmAsBuiltSpec>,
 }
 
 impl RobotSpec {
@@ -228,6 +261,11 @@ pub enum WorldError {
 }
 
 impl WorldFile {
+    /// The effects in force: the preset's, with `[effects]` over them.
+    pub fn effects(&self) -> Effects {
+        Effects::resolve(self.realism, &self.effects)
+    }
+
     /// Reads and checks a world file.
     pub fn load(path: &Path) -> Result<WorldFile, WorldError> {
         let text = std::fs::read_to_string(path)
@@ -262,6 +300,7 @@ impl WorldFile {
     fn check(&self) -> Result<(), (String, String)> {
         self.check_table_and_light()?;
         self.check_cameras()?;
+        self.check_realism()?;
         self.check_render_and_physics()?;
         self.check_clutter()?;
         self.check_bins()
@@ -319,6 +358,60 @@ impl WorldFile {
                     r.resolution, l.resolution
                 ),
             ));
+        }
+        Ok(())
+    }
+
+    fn check_realism(&self) -> Result<(), (String, String)> {
+        within("table.texture", self.table.texture, 0.0, 0.5, "")?;
+        for (side, cam) in [("left", &self.cameras.left), ("right", &self.cameras.right)] {
+            let field = |name: &str| format!("cameras.{side}.{name}");
+            if let Some(l) = &cam.lens {
+                if let Some(d) = l.distortion {
+                    for (i, c) in d.iter().enumerate() {
+                        within(&field(&format!("lens.distortion[{i}]")), *c, -2.0, 2.0, "")?;
+                    }
+                }
+                let f = l.focal_length_mm.unwrap_or(8.0);
+                within(&field("lens.focal_length_mm"), f, 0.5, 500.0, "mm")?;
+                within(&field("lens.f_number"), l.f_number.unwrap_or(2.0), 0.5, 64.0, "")?;
+                within(&field("lens.focus_distance_m"), l.focus_distance_m.unwrap_or(0.9), 2.0 * f * 1e-3, 1e3, "m")?;
+                within(&field("lens.psf_sigma_px"), l.psf_sigma_px.unwrap_or(0.45), 0.0, 10.0, "pixels")?;
+                within(&field("lens.vignetting_exponent"), l.vignetting_exponent.unwrap_or(4.0), 0.0, 20.0, "")?;
+            }
+            if let Some(s) = &cam.sensor {
+                within(&field("sensor.full_well_e"), s.full_well_e.unwrap_or(18e3), 100.0, 1e7, "electrons")?;
+                within(&field("sensor.white_e"), s.white_e.unwrap_or(15e3), 1.0, 1e7, "electrons")?;
+                within(&field("sensor.read_noise_e"), s.read_noise_e.unwrap_or(15.0), 0.0, 1e4, "electrons")?;
+                within(&field("sensor.prnu"), s.prnu.unwrap_or(0.01), 0.0, 0.5, "")?;
+                within(&field("sensor.dsnu_e"), s.dsnu_e.unwrap_or(20.0), 0.0, 1e5, "electrons")?;
+                within(&field("sensor.gain"), s.gain.unwrap_or(1.0), 0.01, 100.0, "")?;
+                within(&field("sensor.black_level_dn"), s.black_level_dn.unwrap_or(6.0), 0.0, 128.0, "grey levels")?;
+                within(&field("sensor.gamma"), s.gamma.unwrap_or(1.0), 0.2, 5.0, "")?;
+            }
+            if let Some(m) = &cam.mounting {
+                within(&field("mounting.position_sigma_mm"), m.position_sigma_mm.unwrap_or(2.0), 0.0, 100.0, "mm")?;
+                within(&field("mounting.rotation_sigma_deg"), m.rotation_sigma_deg.unwrap_or(0.15), 0.0, 10.0, "deg")?;
+                for (i, v) in m.offset_mm.unwrap_or_default().iter().enumerate() {
+                    within(&field(&format!("mounting.offset_mm[{i}]")), *v, -500.0, 500.0, "mm")?;
+                }
+                for (i, v) in m.rotation_deg.unwrap_or_default().iter().enumerate() {
+                    within(&field(&format!("mounting.rotation_deg[{i}]")), *v, -45.0, 45.0, "deg")?;
+                }
+            }
+        }
+        for (i, lamp) in self.lamps.iter().flatten().enumerate() {
+            if norm(lamp.position_m) < 0.05 {
+                return Err((format!("lamps[{i}].position_m"), "must stand at least 5 cm from the origin".into()));
+            }
+            within(&format!("lamps[{i}].radius_m"), lamp.radius_m, 0.0, 2.0, "m")?;
+            within(&format!("lamps[{i}].irradiance"), lamp.irradiance, 0.0, 10.0, "")?;
+        }
+        if let Some(a) = self.robot.as_ref().and_then(|r| r.as_built.as_ref()) {
+            within("robot.as_built.joint_offset_sigma_deg", a.joint_offset_sigma_deg.unwrap_or(0.1), 0.0, 10.0, "deg")?;
+            within("robot.as_built.link_length_sigma_mm", a.link_length_sigma_mm.unwrap_or(0.2), 0.0, 50.0, "mm")?;
+            within("robot.as_built.encoder_counts_per_rev", a.encoder_counts_per_rev.unwrap_or(16384.0), 16.0, 1e9, "")?;
+            within("robot.as_built.encoder_counts_per_m", a.encoder_counts_per_m.unwrap_or(1e5), 100.0, 1e12, "")?;
         }
         Ok(())
     }

@@ -1,0 +1,435 @@
+//! Light in the realistic cell: lamps of some size with fall-off and soft cast shadows, a sky,
+//! glossy reflection and the table's faint texture.
+//!
+//! Brightness is in the ideal renderer's units (a white matte surface under irradiance 1 is 1):
+//!
+//! ```text
+//! brightness = albedo (1 - s) (E_lamps + E_sky) + s Σ_lamp-points E_k (m + 8) / 8 (n·h_k)^m
+//! E_k = I_k max(0, n·l_k) / d_k² · lit_k,   E_sky = sky (1 + n_z) / 2
+//! ```
+//!
+//! Each lamp is a disc facing the origin, sampled at [`LAMP_POINTS`] points on a Vogel spiral;
+//! each point has its own shadow map (a depth image from that point), so a point of the scene
+//! is lit by the fraction of the lamp it sees: umbra, penumbra and light. `s` is the finish's
+//! specular fraction; `m = 2 / roughness² - 2` the normalised Blinn-Phong exponent.
+//!
+//! Written by hand: the shadow maps reuse nothing of a GPU, and the shading is a few lines.
+
+use crate::realism::{Effects, Finish, LampSpec};
+use crate::render::Light;
+use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
+use rayon::prelude::*;
+
+/// Points each lamp is sampled at (shadows have this many steps of penumbra, smoothed by the
+/// maps' bilinear look-ups and the lens's blur).
+pub const LAMP_POINTS: usize = 8;
+/// Shadow maps are this many texels square.
+const MAP_SIZE: usize = 640;
+/// Half the field of view of a shadow map, radians: the whole table from a lamp over it.
+const MAP_HALF_FOV: f64 = 0.75;
+/// Depth tolerance of a shadow test, metres, beyond the normal offset.
+const SHADOW_BIAS_M: f32 = 1.5e-3;
+
+/// A depth image seen from one point of a lamp.
+struct ShadowMap {
+    view_from_world: Isometry3<f64>,
+    focal: f64,
+    /// Inverse depth along the view axis, 1/metres, of the nearest surface; 0 where nothing was
+    /// drawn.
+    inv_depth: Vec<f32>,
+}
+
+/// One point of a lamp.
+struct LampPoint {
+    position: Point3<f64>,
+    /// `I / LAMP_POINTS`: irradiance at 1 m facing the point.
+    intensity: f64,
+    shadow: Option<ShadowMap>,
+}
+
+/// The light of a realistic scene, ready to shade any surface point.
+pub struct Lighting {
+    points: Vec<LampPoint>,
+    sky: f64,
+    /// Used when lamps are off: the ideal preset's distant light.
+    distant: Light,
+    lamps_on: bool,
+    specular_on: bool,
+    texture_on: bool,
+}
+
+/// What the shading needs of a surface.
+#[derive(Debug, Clone, Copy)]
+pub struct Surface {
+    pub point: Point3<f64>,
+    pub normal: Vector3<f64>,
+    pub albedo: f32,
+    pub finish: Finish,
+}
+
+impl Lighting {
+    /// Builds each lamp's points and (with shadows on) their shadow maps of `occluders`
+    /// (world-space triangles).
+    pub fn new(lamps: &[LampSpec], distant: Light, effects: &Effects, occluders: &[[Point3<f64>; 3]]) -> Lighting {
+        let mut points: Vec<LampPoint> = Vec::new();
+        if effects.lamps {
+            for lamp in lamps {
+                let centre = lamp.position();
+                let intensity = lamp.irradiance * centre.coords.norm_squared() / LAMP_POINTS as f64;
+                for p in disc_points(centre, lamp.radius_m) {
+                    points.push(LampPoint { position: p, intensity, shadow: None });
+                }
+            }
+            if effects.shadows {
+                let maps: Vec<ShadowMap> = points.par_iter().map(|p| ShadowMap::new(p.position, occluders)).collect();
+                for (p, m) in points.iter_mut().zip(maps) {
+                    p.shadow = Some(m);
+                }
+            }
+        }
+        Lighting {
+            points,
+            sky: distant.ambient,
+            distant,
+            lamps_on: effects.lamps,
+            specular_on: effects.specular,
+            texture_on: effects.table_texture,
+        }
+    }
+
+    /// Brightness of `s` seen from `eye`.
+    pub fn shade(&self, s: &Surface, eye: &Point3<f64>) -> f32 {
+        let n = s.normal;
+        let mut albedo = s.albedo * s.finish.albedo_scale;
+        if self.texture_on && s.finish.texture > 0.0 {
+            albedo *= 1.0 + s.finish.texture * table_texture(s.point.x, s.point.y);
+        }
+        let spec_frac = if self.specular_on { s.finish.specular } else { 0.0 };
+        if !self.lamps_on {
+            let lambert = n.dot(&self.distant.towards_light).max(0.0);
+            let diffuse = self.distant.ambient + self.distant.diffuse * lambert;
+            let gloss = if spec_frac > 0.0 {
+                let view = (eye - s.point).normalize();
+                self.distant.diffuse * lambert * lobe(&n, &self.distant.towards_light, &view, s.finish.roughness)
+            } else {
+                0.0
+            };
+            return albedo * (1.0 - spec_frac) * diffuse as f32 + spec_frac * gloss as f32;
+        }
+        let sky = self.sky * 0.5 * (1.0 + n.z);
+        let view = (eye - s.point).normalize();
+        let (mut lamp, mut gloss) = (0.0, 0.0);
+        for p in &self.points {
+            let to = p.position - s.point;
+            let d2 = to.norm_squared();
+            let l = to / d2.sqrt();
+            let cos = n.dot(&l);
+            if cos <= 0.0 {
+                continue;
+            }
+            let lit = p.shadow.as_ref().map_or(1.0, |m| m.lit(&s.point, &n));
+            if lit <= 0.0 {
+                continue;
+            }
+            let e = p.intensity * cos / d2 * lit;
+            lamp += e;
+            if spec_frac > 0.0 {
+                gloss += e * lobe(&n, &l, &view, s.finish.roughness);
+            }
+        }
+        albedo * (1.0 - spec_frac) * (lamp + sky) as f32 + spec_frac * gloss as f32
+    }
+
+    /// Irradiance the lamps alone put on a point with normal `n`, unshadowed and shadowed:
+    /// what a test compares a point in shadow with.
+    pub fn lamp_irradiance(&self, point: &Point3<f64>, n: &Vector3<f64>) -> (f64, f64) {
+        let (mut open, mut shadowed) = (0.0, 0.0);
+        for p in &self.points {
+            let to = p.position - point;
+            let d2 = to.norm_squared();
+            let cos = n.dot(&(to / d2.sqrt())).max(0.0);
+            let e = p.intensity * cos / d2;
+            open += e;
+            shadowed += e * p.shadow.as_ref().map_or(1.0, |m| m.lit(point, n));
+        }
+        (open, shadowed)
+    }
+
+    /// The sky's irradiance on a surface with normal `n`.
+    pub fn sky_irradiance(&self, n: &Vector3<f64>) -> f64 {
+        self.sky * 0.5 * (1.0 + n.z)
+    }
+}
+
+/// Normalised Blinn-Phong, as a multiple of the lamp's irradiance: `(m + 8) / 8 (n·h)^m`.
+fn lobe(n: &Vector3<f64>, l: &Vector3<f64>, view: &Vector3<f64>, roughness: f32) -> f64 {
+    let h = (l + view).normalize();
+    let r = roughness.max(0.02) as f64;
+    let m = 2.0 / (r * r) - 2.0;
+    (m + 8.0) / 8.0 * n.dot(&h).max(0.0).powf(m)
+}
+
+/// `LAMP_POINTS` points spread evenly over a disc of `radius` at `centre`, facing the origin
+/// (a Vogel spiral: equal areas, no rings).
+fn disc_points(centre: Point3<f64>, radius: f64) -> Vec<Point3<f64>> {
+    let axis = (-centre.coords).try_normalize(1e-12).unwrap_or(-Vector3::z());
+    let helper = if axis.z.abs() < 0.9 { Vector3::z() } else { Vector3::x() };
+    let u = axis.cross(&helper).normalize();
+    let v = axis.cross(&u);
+    (0..LAMP_POINTS)
+        .map(|i| {
+            let r = radius * ((i as f64 + 0.5) / LAMP_POINTS as f64).sqrt();
+            let a = i as f64 * 2.399_963_229_728_653; // the golden angle
+            centre + u * (r * a.cos()) + v * (r * a.sin())
+        })
+        .collect()
+}
+
+impl ShadowMap {
+    /// Draws the depth of `triangles` seen from `from`, looking at the origin.
+    fn new(from: Point3<f64>, triangles: &[[Point3<f64>; 3]]) -> ShadowMap {
+        let forward = (-from.coords).try_normalize(1e-12).unwrap_or(-Vector3::z());
+        let up = if forward.z.abs() < 0.9 { Vector3::z() } else { Vector3::y() };
+        // View frame: z forward, x right, y down, as the cameras' frames.
+        let rot = UnitQuaternion::face_towards(&forward, &-up);
+        let world_from_view = Isometry3::from_parts(from.coords.into(), rot);
+        let view_from_world = world_from_view.inverse();
+        let focal = (MAP_SIZE as f64 / 2.0) / MAP_HALF_FOV.tan();
+        let mut map = ShadowMap { view_from_world, focal, inv_depth: vec![0.0; MAP_SIZE * MAP_SIZE] };
+        for t in triangles {
+            map.draw(&t.map(|p| view_from_world * p));
+        }
+        map
+    }
+
+    fn to_texel(&self, p: &Point3<f64>) -> (f64, f64) {
+        let c = (MAP_SIZE as f64 - 1.0) / 2.0;
+        (self.focal * p.x / p.z + c, self.focal * p.y / p.z + c)
+    }
+
+    /// Rasterises one view-space triangle, clipped at a near plane, keeping the nearest depth.
+    fn draw(&mut self, tri: &[Point3<f64>; 3]) {
+        const NEAR: f64 = 0.02;
+        let polygon = clip_near(tri, NEAR);
+        if polygon.len() < 3 {
+            return;
+        }
+        let px: Vec<[f64; 3]> = polygon
+            .iter()
+            .map(|p| {
+                let (x, y) = self.to_texel(p);
+                [x, y, 1.0 / p.z]
+            })
+            .collect();
+        for k in 1..px.len() - 1 {
+            self.fill([px[0], px[k], px[k + 1]]);
+        }
+    }
+
+    /// Fills one triangle of texel coordinates and inverse depths, row by row over the span
+    /// that its three edges leave (big triangles, the table's, cost one pass over their texels).
+    fn fill(&mut self, v: [[f64; 3]; 3]) {
+        let area = (v[1][0] - v[0][0]) * (v[2][1] - v[0][1]) - (v[2][0] - v[0][0]) * (v[1][1] - v[0][1]);
+        if area.abs() < 1e-12 {
+            return;
+        }
+        // Edge functions a x + b y + c, positive inside whichever way the triangle winds.
+        let edges = [0, 1, 2].map(|i| {
+            let (p, q) = (v[i], v[(i + 1) % 3]);
+            let (a, b) = (-(q[1] - p[1]) * area.signum(), (q[0] - p[0]) * area.signum());
+            [a, b, -(a * p[0] + b * p[1])]
+        });
+        // The plane of 1/z over the texels.
+        let (dx1, dy1, dz1) = (v[1][0] - v[0][0], v[1][1] - v[0][1], v[1][2] - v[0][2]);
+        let (dx2, dy2, dz2) = (v[2][0] - v[0][0], v[2][1] - v[0][1], v[2][2] - v[0][2]);
+        let pz = (dz1 * dy2 - dz2 * dy1) / area;
+        let qz = (dx1 * dz2 - dx2 * dz1) / area;
+        let rz = v[0][2] - pz * v[0][0] - qz * v[0][1];
+        let max = (MAP_SIZE - 1) as f64;
+        let y0 = v.iter().map(|c| c[1]).fold(f64::MAX, f64::min).ceil().max(0.0);
+        let y1 = v.iter().map(|c| c[1]).fold(f64::MIN, f64::max).floor().min(max);
+        let mut y = y0;
+        while y <= y1 {
+            let (mut lo, mut hi) = (0.0f64, max);
+            for [a, b, c] in edges {
+                let rest = b * y + c;
+                if a > 0.0 {
+                    lo = lo.max((-rest / a).ceil());
+                } else if a < 0.0 {
+                    hi = hi.min((-rest / a).floor());
+                } else if rest < 0.0 {
+                    hi = -1.0;
+                }
+            }
+            let row = y as usize * MAP_SIZE;
+            let mut x = lo;
+            while x <= hi {
+                let inv_z = (pz * x + qz * y + rz) as f32;
+                let d = &mut self.inv_depth[row + x as usize];
+                *d = d.max(inv_z);
+                x += 1.0;
+            }
+            y += 1.0;
+        }
+    }
+
+    /// The fraction (0-1) of this lamp point's light that reaches `p` (with normal `n`): the
+    /// four nearest texels' tests, weighted bilinearly. The point is first moved a texel and a
+    /// half along its normal, so a surface does not shadow itself.
+    fn lit(&self, p: &Point3<f64>, n: &Vector3<f64>) -> f64 {
+        let q0 = self.view_from_world * p;
+        if q0.z <= 0.0 {
+            return 1.0;
+        }
+        let texel = q0.z / self.focal;
+        let q = self.view_from_world * (p + n * (1.5 * texel));
+        let (x, y) = self.to_texel(&q);
+        let (fx, fy) = (x.floor(), y.floor());
+        let (ax, ay) = (x - fx, y - fy);
+        let inv_depth = 1.0 / (q.z as f32 - SHADOW_BIAS_M);
+        let at = |i: f64, j: f64| -> f64 {
+            if i < 0.0 || j < 0.0 || i >= MAP_SIZE as f64 || j >= MAP_SIZE as f64 {
+                return 1.0; // outside the map: nothing there to cast a shadow
+            }
+            if inv_depth >= self.inv_depth[j as usize * MAP_SIZE + i as usize] { 1.0 } else { 0.0 }
+        };
+        (1.0 - ay) * ((1.0 - ax) * at(fx, fy) + ax * at(fx + 1.0, fy))
+            + ay * ((1.0 - ax) * at(fx, fy + 1.0) + ax * at(fx + 1.0, fy + 1.0))
+    }
+}
+
+/// Clips a triangle to `z >= near` (Sutherland-Hodgman against one plane).
+fn clip_near(tri: &[Point3<f64>; 3], near: f64) -> Vec<Point3<f64>> {
+    let mut out = Vec::with_capacity(4);
+    for i in 0..3 {
+        let (a, b) = (tri[i], tri[(i + 1) % 3]);
+        if a.z >= near {
+            out.push(a);
+        }
+        if (a.z >= near) != (b.z >= near) {
+            let s = (near - a.z) / (b.z - a.z);
+            out.push(a + (b - a) * s);
+        }
+    }
+    out
+}
+
+/// The table's faint texture: smooth value noise in the table's plane, in -1..1, at three
+/// scales (4, 13 and 40 mm), as a laminate's grain.
+pub fn table_texture(x: f64, y: f64) -> f32 {
+    let octave = |scale: f64, salt: u64| value_noise(x / scale, y / scale, salt);
+    (0.5 * octave(0.040, 1) + 0.3 * octave(0.013, 2) + 0.2 * octave(0.004, 3)) as f32
+}
+
+/// Smoothly interpolated random values on the integer lattice, in -1..1.
+fn value_noise(x: f64, y: f64, salt: u64) -> f64 {
+    let (fx, fy) = (x.floor(), y.floor());
+    let (ix, iy) = (fx as i64, fy as i64);
+    let smooth = |t: f64| t * t * (3.0 - 2.0 * t);
+    let (sx, sy) = (smooth(x - fx), smooth(y - fy));
+    let at = |i: i64, j: i64| lattice(i, j, salt);
+    let top = at(ix, iy) * (1.0 - sx) + at(ix + 1, iy) * sx;
+    let bottom = at(ix, iy + 1) * (1.0 - sx) + at(ix + 1, iy + 1) * sx;
+    top * (1.0 - sy) + bottom * sy
+}
+
+/// A hash of a lattice point to -1..1 (SplitMix64's finaliser).
+fn lattice(i: i64, j: i64, salt: u64) -> f64 {
+    let mut z = (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        ^ (j as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
+        ^ salt.wrapping_mul(0x1656_67B1_9E37_79F9);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^= z >> 31;
+    (z >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::realism::{EffectsSpec, Preset};
+
+    fn effects() -> Effects {
+        Effects::resolve(Preset::Realistic, &EffectsSpec::default())
+    }
+
+    /// A 1 m floor square at z = 0 and a 10 cm square plate 10 cm over its middle.
+    fn floor_and_plate() -> Vec<[Point3<f64>; 3]> {
+        let square = |h: f64, z: f64| {
+            let p = |x: f64, y: f64| Point3::new(x, y, z);
+            vec![[p(-h, -h), p(h, -h), p(h, h)], [p(-h, -h), p(h, h), p(-h, h)]]
+        };
+        let mut t = square(0.5, 0.0);
+        t.extend(square(0.05, 0.1));
+        t
+    }
+
+    fn lamp_overhead(radius: f64) -> LampSpec {
+        LampSpec { position_m: [0.0, 0.0, 1.0], radius_m: radius, irradiance: 0.8 }
+    }
+
+    fn distant() -> Light {
+        Light { towards_light: Vector3::z(), diffuse: 0.75, ambient: 0.2 }
+    }
+
+    #[test]
+    fn a_point_in_a_parts_shadow_is_darker_by_the_lamps_share() {
+        let lighting = Lighting::new(&[lamp_overhead(0.02)], distant(), &effects(), &floor_and_plate());
+        let matte = Finish::MATTE;
+        let up = Vector3::z();
+        let surface = |x: f64| Surface { point: Point3::new(x, 0.0, 0.0), normal: up, albedo: 0.5, finish: matte };
+        let eye = Point3::new(0.0, -0.5, 0.8);
+        let (shadowed, open) = (lighting.shade(&surface(0.0), &eye), lighting.shade(&surface(0.3), &eye));
+        // Under the plate the floor has only the sky; in the open the lamp too, falling off with
+        // the square of the distance and the cosine: by hand at (0.3, 0, 0), d² = 1.09.
+        let sky = 0.2;
+        assert!((shadowed - 0.5 * sky as f32).abs() < 1e-6, "{shadowed}");
+        let lamp_at_03: f64 = lighting.points.iter().map(|p| {
+            let to = p.position - Point3::new(0.3, 0.0, 0.0);
+            p.intensity * to.z / to.norm().powi(3)
+        }).sum();
+        assert!((lamp_at_03 - 0.8 / 1.09f64.powf(1.5)).abs() < 2e-3, "{lamp_at_03}");
+        assert!((open - 0.5 * (sky + lamp_at_03) as f32).abs() < 1e-5, "{open}");
+        let (unshadowed, reached) = lighting.lamp_irradiance(&Point3::new(0.0, 0.0, 0.0), &up);
+        assert!((unshadowed - 0.8).abs() < 2e-3 && reached == 0.0, "{unshadowed} {reached}");
+    }
+
+    #[test]
+    fn a_larger_lamp_casts_a_penumbra_that_a_small_one_does_not() {
+        let (small, large) = (
+            Lighting::new(&[lamp_overhead(0.005)], distant(), &effects(), &floor_and_plate()),
+            Lighting::new(&[lamp_overhead(0.3)], distant(), &effects(), &floor_and_plate()),
+        );
+        let up = Vector3::z();
+        // Just outside the plate's shadow edge (x = 0.05 / 0.9 = 0.0556 m from an overhead point).
+        let fraction = |l: &Lighting, x: f64| {
+            let (open, lit) = l.lamp_irradiance(&Point3::new(x, 0.0, 0.0), &up);
+            lit / open
+        };
+        assert_eq!(fraction(&small, 0.045), 0.0);
+        assert_eq!(fraction(&small, 0.065), 1.0);
+        let half = fraction(&large, 0.056);
+        assert!(half > 0.1 && half < 0.9, "the large lamp's penumbra: {half}");
+    }
+
+    #[test]
+    fn gloss_depends_on_the_viewpoint_and_diffuse_light_does_not() {
+        let lighting = Lighting::new(&[lamp_overhead(0.02)], distant(), &effects(), &[]);
+        let glossy = Finish { specular: 0.2, roughness: 0.3, ..Finish::MATTE };
+        let s = Surface { point: Point3::new(0.1, 0.0, 0.0), normal: Vector3::z(), albedo: 0.5, finish: glossy };
+        // The mirror direction of the lamp seen from (0.1, 0, 0) is towards (0.2, 0, 1).
+        let (mirror, aside) = (lighting.shade(&s, &Point3::new(0.2, 0.0, 1.0)), lighting.shade(&s, &Point3::new(-0.6, 0.0, 0.5)));
+        assert!(mirror > 1.5 * aside, "highlight {mirror} vs {aside}");
+        let matte = Surface { finish: Finish::MATTE, ..s };
+        assert_eq!(lighting.shade(&matte, &Point3::new(0.2, 0.0, 1.0)), lighting.shade(&matte, &Point3::new(-0.6, 0.0, 0.5)));
+    }
+
+    #[test]
+    fn the_texture_is_faint_smooth_and_centred() {
+        let values: Vec<f32> = (0..2000).map(|i| table_texture(i as f64 * 0.0037, (i % 37) as f64 * 0.011)).collect();
+        let mean = values.iter().sum::<f32>() / values.len() as f32;
+        assert!(mean.abs() < 0.1, "{mean}");
+        assert!(values.iter().all(|v| v.abs() <= 1.0));
+        assert!((table_texture(0.1, 0.1) - table_texture(0.1001, 0.1)).abs() < 0.02);
+    }
+}

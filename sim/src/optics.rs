@@ -1,0 +1,156 @@
+//! A real lens between the scene and the sensor: distortion, blur and vignetting.
+//!
+//! The rasteriser draws straight lines, so a distorted image is drawn in two steps: the scene
+//! is rendered through a *virtual pinhole* (the true camera's intrinsics, widened to take in
+//! everything the distorted image shows), then each pixel of the real image takes the radiance
+//! of the ideal point its lens maps onto it (`plumb_bob` inverted, bilinear look-up). The blur
+//! is then laid on per pixel, by the depth seen there: the thin lens's circle of confusion and
+//! the lens's own spread, as Gaussians blended between a few precomputed widths. Vignetting is
+//! the `cos^n` law of the ray's angle off the axis.
+
+use crate::realism::CameraAsBuilt;
+use mesh::PinholeCamera;
+use rayon::prelude::*;
+
+/// Pixels of margin the virtual image keeps round what the real image needs (the bilinear
+/// look-up and the blur reach past the edge).
+const MARGIN_PX: f64 = 4.0;
+
+/// The virtual pinhole a camera's scene is drawn through: the true camera's focal lengths and
+/// pose, with the principal point moved so that every ideal point that the lens maps into the
+/// image lies inside.
+pub fn virtual_pinhole(cam: &CameraAsBuilt) -> PinholeCamera {
+    let p = &cam.pinhole;
+    let (w, h) = (p.width as f64, p.height as f64);
+    let (mut lo_x, mut lo_y, mut hi_x, mut hi_y) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+    // The border of the image, finely: under barrel distortion the corners reach furthest.
+    let steps = 64;
+    let border = (0..=steps).flat_map(|i| {
+        let t = i as f64 / steps as f64;
+        [(t * w - 0.5, -0.5), (t * w - 0.5, h - 0.5), (-0.5, t * h - 0.5), (w - 0.5, t * h - 0.5)]
+    });
+    for (u, v) in border {
+        let (x, y) = ideal_normalised(cam, u, v);
+        lo_x = lo_x.min(p.fx * x);
+        hi_x = hi_x.max(p.fx * x);
+        lo_y = lo_y.min(p.fy * y);
+        hi_y = hi_y.max(p.fy * y);
+    }
+    let (x0, y0) = ((lo_x - MARGIN_PX).floor(), (lo_y - MARGIN_PX).floor());
+    let (x1, y1) = ((hi_x + MARGIN_PX).ceil(), (hi_y + MARGIN_PX).ceil());
+    PinholeCamera {
+        width: (x1 - x0) as u32 + 1,
+        height: (y1 - y0) as u32 + 1,
+        cx: -x0,
+        cy: -y0,
+        ..p.clone()
+    }
+}
+
+/// The ideal (undistorted) normalised coordinates of the ray the lens brings to pixel `(u, v)`.
+pub fn ideal_normalised(cam: &CameraAsBuilt, u: f64, v: f64) -> (f64, f64) {
+    let p = &cam.pinhole;
+    let (xd, yd) = ((u - p.cx) / p.fx, (v - p.cy) / p.fy);
+    cam.lens.distortion.undistort(xd, yd).unwrap_or((xd, yd))
+}
+
+/// Bilinear look-up of a `w`-wide image at `(x, y)`; clamped at the border.
+pub fn bilinear(image: &[f32], w: usize, h: usize, x: f64, y: f64) -> f32 {
+    let x = x.clamp(0.0, (w - 1) as f64);
+    let y = y.clamp(0.0, (h - 1) as f64);
+    let (x0, y0) = (x.floor() as usize, y.floor() as usize);
+    let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+    let (ax, ay) = ((x - x0 as f64) as f32, (y - y0 as f64) as f32);
+    let row = |y: usize| (1.0 - ax) * image[y * w + x0] + ax * image[y * w + x1];
+    (1.0 - ay) * row(y0) + ay * row(y1)
+}
+
+/// `cos^n` of the angle off the axis of the ray with normalised coordinates `(x, y)`.
+pub fn vignetting(x: f64, y: f64, exponent: f64) -> f32 {
+    (1.0 + x * x + y * y).powf(-exponent / 2.0) as f32
+}
+
+/// Blurs `image` (`w` wide) with a Gaussian whose sigma varies per pixel (`sigma[i]`, pixels):
+/// the image blurred at a ladder of sigmas [`SIGMA_STEP`] apart, each pixel blended between
+/// the two rungs round its own sigma.
+pub fn blur_by_sigma(image: &[f32], w: usize, sigma: &[f32]) -> Vec<f32> {
+    let lo = sigma.iter().copied().fold(f32::MAX, f32::min).max(0.0);
+    let hi = sigma.iter().copied().fold(0.0f32, f32::max);
+    let rungs = (((hi - lo) / SIGMA_STEP).ceil() as usize).max(0) + 1;
+    let ladder: Vec<f32> = (0..rungs).map(|k| lo + k as f32 * SIGMA_STEP).collect();
+    let blurred: Vec<Vec<f32>> = ladder.par_iter().map(|&s| gaussian_blur(image, w, s)).collect();
+    (0..image.len())
+        .into_par_iter()
+        .map(|i| {
+            let t = if rungs == 1 { 0.0 } else { (sigma[i] - lo) / SIGMA_STEP };
+            let k = (t.floor() as usize).min(rungs - 1);
+            let a = t - k as f32;
+            if k + 1 < rungs { (1.0 - a) * blurred[k][i] + a * blurred[k + 1][i] } else { blurred[k][i] }
+        })
+        .collect()
+}
+
+/// Steps between the sigmas the image is blurred at: blending two Gaussians this close gives
+/// a spread within 1% of the Gaussian between them.
+pub const SIGMA_STEP: f32 = 0.125;
+
+/// A separable Gaussian blur of sigma `s` pixels, borders clamped.
+pub fn gaussian_blur(image: &[f32], w: usize, s: f32) -> Vec<f32> {
+    if s <= 1e-3 {
+        return image.to_vec();
+    }
+    let h = image.len() / w;
+    let r = (3.0 * s).ceil() as i64;
+    let mut kernel: Vec<f32> = (-r..=r).map(|i| (-(i * i) as f32 / (2.0 * s * s)).exp()).collect();
+    let total: f32 = kernel.iter().sum();
+    kernel.iter_mut().for_each(|k| *k /= total);
+    let mut across = vec![0.0f32; image.len()];
+    across.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        for (x, out) in row.iter_mut().enumerate() {
+            *out = kernel
+                .iter()
+                .enumerate()
+                .map(|(k, wt)| wt * image[y * w + (x as i64 + k as i64 - r).clamp(0, w as i64 - 1) as usize])
+                .sum();
+        }
+    });
+    let mut out = vec![0.0f32; image.len()];
+    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        for (x, o) in row.iter_mut().enumerate() {
+            *o = kernel
+                .iter()
+                .enumerate()
+                .map(|(k, wt)| wt * across[(y as i64 + k as i64 - r).clamp(0, h as i64 - 1) as usize * w + x])
+                .sum();
+        }
+    });
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_blurred_step_has_the_asked_spread() {
+        let (w, h) = (64, 8);
+        let step: Vec<f32> = (0..w * h).map(|i| if i % w >= 32 { 1.0 } else { 0.0 }).collect();
+        // Below about 0.7 px a sampled Gaussian kernel is no longer Gaussian in its variance.
+        for s in [0.8f32, 1.3] {
+            let b = gaussian_blur(&step, w, s);
+            // The derivative of a blurred step is the kernel: its variance is s².
+            let d: Vec<f32> = (1..w).map(|x| b[4 * w + x] - b[4 * w + x - 1]).collect();
+            let mean: f32 = d.iter().enumerate().map(|(i, v)| (i as f32 + 0.5) * v).sum();
+            let var: f32 = d.iter().enumerate().map(|(i, v)| (i as f32 + 0.5 - mean).powi(2) * v).sum();
+            assert!((var - s * s).abs() < 0.02 + 0.02 * s * s, "sigma {s}: variance {var}");
+        }
+    }
+
+    #[test]
+    fn vignetting_follows_the_cosine_law() {
+        assert_eq!(vignetting(0.0, 0.0, 4.0), 1.0);
+        let angle = 0.3f64;
+        let v = vignetting(angle.tan(), 0.0, 4.0);
+        assert!((v as f64 - angle.cos().powi(4)).abs() < 1e-6);
+    }
+}
