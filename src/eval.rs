@@ -1,8 +1,7 @@
 //! Evaluation of the vision front end against ground truth (the only code that reads it).
 
 use crate::front_end::FrontEnd;
-use crate::truth::TruthScene;
-use mesh::StereoCalibration;
+use crate::truth::{EvalCameras, TruthScene};
 use nalgebra::Point3;
 use serde::Serialize;
 use vision::front_end::rectify::Rectification;
@@ -89,14 +88,14 @@ impl ArmMask {
 pub fn disparity_stats(
     fe: &FrontEnd,
     truth: &TruthScene,
-    calib: &StereoCalibration,
+    cams: &EvalCameras,
     arm: &ArmMask,
 ) -> (DisparityStats, DisparityStats) {
-    let rect = Rectification::new(calib);
+    let rect = Rectification::new(&cams.vision);
     let (mut workspace, mut on_arm) = (DisparityStats::default(), DisparityStats::default());
     for m in &fe.matches {
         let e = &fe.left.edgels[m.left as usize];
-        let Some(d) = truth.disparity(&calib.left, &rect, e.x as f64, e.y as f64, e.orientation as f64) else {
+        let Some(d) = truth.disparity(cams, &rect, e.x as f64, e.y as f64, e.orientation as f64) else {
             continue;
         };
         let err = (m.disparity as f64 - d).abs();
@@ -116,11 +115,11 @@ pub fn disparity_stats(
 pub fn edgel_fates(
     fe: &FrontEnd,
     truth: &TruthScene,
-    calib: &StereoCalibration,
+    cams: &EvalCameras,
     arm: &ArmMask,
 ) -> std::collections::BTreeMap<String, usize> {
     use vision::front_end::pmf::{PmfParams, refusal};
-    let rect = Rectification::new(calib);
+    let rect = Rectification::new(&cams.vision);
     let (disparity_min, disparity_max) = vision::front_end::disparity_range(
         &rect,
         vision::front_end::WORKSPACE_DEPTH_M.0,
@@ -144,7 +143,7 @@ pub fn edgel_fates(
         if arm.covers(e.x as f64, e.y as f64) {
             continue;
         }
-        let Some(d) = truth.disparity(&calib.left, &rect, e.x as f64, e.y as f64, e.orientation as f64) else {
+        let Some(d) = truth.disparity(cams, &rect, e.x as f64, e.y as f64, e.orientation as f64) else {
             continue;
         };
         let fate = match matched[i] {
@@ -215,23 +214,26 @@ const RECOVERED_ANGLE_DEG: f64 = 10.0;
 /// Visible runs shorter than this in the image do not count towards coverage.
 const MIN_VISIBLE_RUN_PX: f64 = 20.0;
 
-/// Compares 3D lines (in the left camera's frame) with the true feature edges of the scene's
-/// objects; `left_depth` is the left camera's true depth map, for visibility.
+/// Compares 3D lines (in the `cam` frame vision was given) with the true feature edges of the
+/// scene's objects; `left_depth` is the true left camera's depth map, for visibility.
 pub fn line_stats(
     fe: &FrontEnd,
     scene: &sim::Scene,
     library: &mesh::Library,
-    calib: &StereoCalibration,
+    cams: &EvalCameras,
     left_depth: &[f32],
     arm: &ArmMask,
 ) -> LineStats {
-    let cam = &calib.left;
+    let cam = &cams.vision.left;
+    let truly = &cams.true_left;
+    // Where vision believes its camera is, against where it is: a true point in vision's frame.
+    let vision_from_true = cam.cam_from_world() * truly.pinhole.world_from_cam;
     let edges: Vec<(Point3<f64>, Point3<f64>)> = scene
         .objects
         .iter()
         .flat_map(|o| {
             library.models[&o.model].wireframe.iter().map(move |s| {
-                let to_cam = cam.cam_from_world() * o.world_from_model;
+                let to_cam = truly.pinhole.cam_from_world() * o.world_from_model;
                 (to_cam * s.a, to_cam * s.b)
             })
         })
@@ -251,6 +253,9 @@ pub fn line_stats(
             !arm_line
         })
         .collect();
+    // The lines in the true camera's frame (where the truth edges are).
+    let lines: Vec<(Point3<f64>, Point3<f64>)> =
+        lines.iter().map(|(a, b)| (vision_from_true.inverse() * a, vision_from_true.inverse() * b)).collect();
     for (a, b) in &lines {
         for p in [a, b] {
             let nearest = edges.iter().map(|(ea, eb)| point_segment_distance(p, ea, eb)).fold(f64::MAX, f64::min);
@@ -274,7 +279,7 @@ pub fn line_stats(
         for k in 0..steps {
             let p = ea + (eb - ea) * ((k as f64 + 0.5) / steps as f64);
             let step_m = (eb - ea).norm() / steps as f64;
-            let Some(px) = cam.project_cam(&p).filter(|q| visible(q, p.z, left_depth, cam)) else {
+            let Some(px) = truly.project_cam(&p).filter(|q| visible(q, p.z, left_depth, &truly.pinhole)) else {
                 close_run(&mut run, &mut stats);
                 last_px = None;
                 continue;
@@ -428,7 +433,7 @@ pub fn quantile(v: &[f64], q: f64) -> f64 {
 pub fn visible_fraction(
     model: &mesh::Model,
     cam_from_model: &nalgebra::Isometry3<f64>,
-    cam: &mesh::PinholeCamera,
+    cam: &mesh::LensCamera,
     depth: &[f32],
 ) -> f64 {
     let (mut seen, mut all) = (0.0, 0.0);
@@ -439,7 +444,7 @@ pub fn visible_fraction(
         for k in 0..steps {
             let p = a + (b - a) * ((k as f64 + 0.5) / steps as f64);
             all += step;
-            if cam.project_cam(&p).is_some_and(|q| visible(&q, p.z, depth, cam)) {
+            if cam.project_cam(&p).is_some_and(|q| visible(&q, p.z, depth, &cam.pinhole)) {
                 seen += step;
             }
         }
@@ -452,18 +457,23 @@ pub fn locate_stats(
     located: &[vision::matcher::Located],
     scene: &sim::Scene,
     library: &mesh::Library,
-    calib: &StereoCalibration,
+    cams: &EvalCameras,
     left_depth: &[f32],
     symmetry: &std::collections::BTreeMap<String, Vec<nalgebra::Isometry3<f64>>>,
 ) -> LocateStats {
-    let cam = &calib.left;
+    // Reports are in the frame of the camera vision was given: the truth is put there through
+    // the world, as a user who took that calibration on trust would put a report in the world.
+    let cam = &cams.vision.left;
     let truths: Vec<(usize, nalgebra::Isometry3<f64>)> =
         scene.objects.iter().enumerate().map(|(i, o)| (i, cam.cam_from_world() * o.world_from_model)).collect();
+    let truly = &cams.true_left;
     let visible: Vec<f64> = scene
         .objects
         .iter()
-        .zip(&truths)
-        .map(|(o, (_, pose))| visible_fraction(&library.models[&o.model], pose, cam, left_depth))
+        .map(|o| {
+            let pose = truly.pinhole.cam_from_world() * o.world_from_model;
+            visible_fraction(&library.models[&o.model], &pose, truly, left_depth)
+        })
         .collect();
     let eligible: Vec<bool> = visible.iter().map(|v| *v >= 0.3).collect();
     let mut stats =

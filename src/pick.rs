@@ -105,7 +105,9 @@ impl<'a> PickCell<'a> {
                 (o.id, o.model.clone(), body)
             })
             .collect();
-        let arm = SimArm::insert(&mut cell, &work.urdf, &work.world_from_base, &HOME, 0.0)?;
+        let spec = scn.world.robot.as_ref().and_then(|r| r.as_built.as_ref());
+        let built = sim::realism::ArmAsBuilt::new(spec, &scn.world.effects(), scn.world.as_built_seed);
+        let arm = SimArm::insert(&mut cell, &work.urdf, &work.world_from_base, &HOME, 0.0, built.as_ref())?;
         let mut pc = PickCell { scn, work, cell, arm, objects, simulated_s: 0.0, bin: 0, released: 0 };
         pc.run_for(HOLD_S);
         Ok(pc)

@@ -1,7 +1,7 @@
 //! Ground truth for evaluation code only: exact ray casts into the settled scene's triangles,
 //! and [`AskTruth`], the robot server's evaluation-only request.
 
-use mesh::{PinholeCamera, TriMesh};
+use mesh::{LensCamera, StereoCalibration, TriMesh};
 use nalgebra::{Point3, Vector3};
 use vision::front_end::rectify::Rectification;
 
@@ -34,14 +34,14 @@ impl TruthScene {
     /// Where the ray through left pixel `(x, y)` meets the nearer of the surfaces on either side
     /// of an edge with gradient direction `orientation` there: the plane of the nearest surface
     /// hit half a pixel to a pixel either side, intersected with the ray itself.
-    pub fn edge_point(&self, cam: &PinholeCamera, x: f64, y: f64, orientation: f64) -> Option<Point3<f64>> {
+    pub fn edge_point(&self, cam: &LensCamera, x: f64, y: f64, orientation: f64) -> Option<Point3<f64>> {
         let (s, c) = orientation.sin_cos();
         let (o, centre_dir) = cam.ray_world(x, y);
         let mut nearest: Option<(f64, usize)> = None;
         for k in [-1.0, -0.5, 0.0, 0.5, 1.0] {
             let (_, d) = cam.ray_world(x + k * c, y + k * s);
             if let Some((t, tri)) = self.cast(&o, &d) {
-                let depth = t * d.dot(&(cam.world_from_cam.rotation * Vector3::z()));
+                let depth = t * d.dot(&(cam.pinhole.world_from_cam.rotation * Vector3::z()));
                 if nearest.is_none_or(|(nd, _)| depth < nd) {
                     nearest = Some((depth, tri));
                 }
@@ -56,17 +56,46 @@ impl TruthScene {
         Some(o + centre_dir * (n.dot(&(a - o)) / denom))
     }
 
-    /// The true disparity at a left edgel, the nearer surface's at an occluding boundary.
-    pub fn disparity(
-        &self,
-        cam: &PinholeCamera,
-        rect: &Rectification,
-        x: f64,
-        y: f64,
-        orientation: f64,
-    ) -> Option<f64> {
-        let p = self.edge_point(cam, x, y, orientation)?;
-        Some(rect.disparity_of(&cam.world_from_cam.inverse_transform_point(&p)))
+    /// The true disparity at a left edgel (the nearer surface's at an occluding boundary), in
+    /// the rectified frame of the calibration vision was given (`rect`): the point the true
+    /// left camera sees at the edgel, where the true right camera sees it, both rectified.
+    pub fn disparity(&self, cams: &EvalCameras, rect: &Rectification, x: f64, y: f64, orientation: f64) -> Option<f64> {
+        use vision::front_end::rectify::Side;
+        let p = self.edge_point(&cams.true_left, x, y, orientation)?;
+        let right = cams.true_right.project_world(&p)?;
+        let (left_rect, _) = rect.to_rectified(Side::Left, x, y);
+        let (right_rect, _) = rect.to_rectified(Side::Right, right.x, right.y);
+        Some(left_rect - right_rect)
+    }
+}
+
+/// The cameras an evaluation compares: the calibration vision was given (its `cam` frame is
+/// that left camera's), and the true cameras (as built, with their lenses) through which the
+/// truth is seen. In the ideal preset they are the same cameras.
+#[derive(Debug, Clone)]
+pub struct EvalCameras {
+    pub vision: StereoCalibration,
+    pub true_left: LensCamera,
+    pub true_right: LensCamera,
+}
+
+impl EvalCameras {
+    /// Vision given the cell's nominal calibration, the truth as built.
+    pub fn of(imaging: &sim::imaging::Imaging) -> EvalCameras {
+        EvalCameras {
+            vision: imaging.nominal.clone(),
+            true_left: imaging.rig.left.lens_camera(),
+            true_right: imaging.rig.right.lens_camera(),
+        }
+    }
+
+    /// Vision given the true pinholes exactly (no lens, as the ideal cell has).
+    pub fn exact(calib: &StereoCalibration) -> EvalCameras {
+        EvalCameras {
+            vision: calib.clone(),
+            true_left: LensCamera::ideal(calib.left.clone()),
+            true_right: LensCamera::ideal(calib.right.clone()),
+        }
     }
 }
 

@@ -8,6 +8,9 @@
 //! fractions and about half again for the errors: a change that loses an object, adds a false
 //! report or blurs the poses fails here. On these scenes the matching issue's false-report target
 //! (0.01) is not met; the vision issue (17) is to bring it down, and this test's limits with it.
+//!
+//! Run on the ideal copy of the world (`worlds/ideal/`): these figures were measured in the ideal
+//! cell and vision has not yet earned them in the realistic one (README, "The realistic cell").
 
 use std::process::Command;
 
@@ -15,7 +18,7 @@ use std::process::Command;
 fn ten_reporting_scenes_are_located_as_measured() {
     let out = Command::new(env!("CARGO_BIN_EXE_marvin"))
         .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .args(["eval", "locate", "worlds/widgets.toml", "--scenes", "10", "--seed", "10001", "--json"])
+        .args(["eval", "locate", "worlds/ideal/widgets.toml", "--scenes", "10", "--seed", "10001", "--json"])
         .output()
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));

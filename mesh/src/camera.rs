@@ -83,6 +83,46 @@ impl PinholeCamera {
     }
 }
 
+/// A camera with a real lens: a pinhole and its `plumb_bob` distortion. Pixels are where the
+/// lens puts light (distorted); rays are the ideal ones.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LensCamera {
+    pub pinhole: PinholeCamera,
+    pub distortion: crate::distortion::PlumbBob,
+}
+
+impl LensCamera {
+    /// A pinhole with no distortion.
+    pub fn ideal(pinhole: PinholeCamera) -> LensCamera {
+        LensCamera { pinhole, distortion: Default::default() }
+    }
+
+    /// Where a point given in the camera's frame appears in the image; `None` behind it.
+    pub fn project_cam(&self, p: &Point3<f64>) -> Option<Point2<f64>> {
+        if p.z <= 1e-9 {
+            return None;
+        }
+        let c = &self.pinhole;
+        let (x, y) = self.distortion.distort(p.x / p.z, p.y / p.z);
+        Some(Point2::new(c.fx * x + c.cx, c.fy * y + c.cy))
+    }
+
+    /// Where a world point appears in the image; `None` behind the camera.
+    pub fn project_world(&self, p: &Point3<f64>) -> Option<Point2<f64>> {
+        self.project_cam(&self.pinhole.world_from_cam.inverse_transform_point(p))
+    }
+
+    /// Origin and unit direction, in the world, of the ray the lens brings to pixel `(u, v)`.
+    pub fn ray_world(&self, u: f64, v: f64) -> (Point3<f64>, Vector3<f64>) {
+        let c = &self.pinhole;
+        let (xd, yd) = ((u - c.cx) / c.fx, (v - c.cy) / c.fy);
+        let (x, y) = self.distortion.undistort(xd, yd).unwrap_or((xd, yd));
+        let dir = c.world_from_cam.rotation * Vector3::new(x, y, 1.0).normalize();
+        (c.centre(), dir)
+    }
+}
+
 /// The two calibrated cameras of the stereo rig. `cam` (the frame the vision pipeline reports
 /// in) is the left camera's frame.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -237,6 +277,25 @@ mod tests {
         let cam = camera();
         let p = Point3::new(0.03, 0.07, 0.02);
         let px = cam.project_world(&p).unwrap();
+        let (o, d) = cam.ray_world(px.x, px.y);
+        let to_p = p - o;
+        assert!((to_p - d * to_p.dot(&d)).norm() < 1e-9);
+    }
+
+    #[test]
+    fn a_lens_camera_projects_by_the_plumb_bob_formula_and_casts_rays_back() {
+        let lens = crate::distortion::PlumbBob { k1: -0.2, k2: 0.09, p1: 3e-4, p2: -2e-4, k3: 0.0 };
+        let cam = LensCamera { pinhole: camera(), distortion: lens };
+        let p = Point3::new(0.12, 0.09, 0.01);
+        let q = cam.pinhole.world_from_cam.inverse_transform_point(&p);
+        // The formula written out: x' = x (1 + k1 r² + k2 r⁴) + 2 p1 x y + p2 (r² + 2 x²), ...
+        let (x, y) = (q.x / q.z, q.y / q.z);
+        let r2 = x * x + y * y;
+        let radial = 1.0 + lens.k1 * r2 + lens.k2 * r2 * r2;
+        let xd = x * radial + 2.0 * lens.p1 * x * y + lens.p2 * (r2 + 2.0 * x * x);
+        let yd = y * radial + lens.p1 * (r2 + 2.0 * y * y) + 2.0 * lens.p2 * x * y;
+        let px = cam.project_world(&p).unwrap();
+        assert!((px.x - (1000.0 * xd + 255.5)).abs() < 0.01 && (px.y - (1000.0 * yd + 255.5)).abs() < 0.01);
         let (o, d) = cam.ray_world(px.x, px.y);
         let to_p = p - o;
         assert!((to_p - d * to_p.dot(&d)).norm() < 1e-9);

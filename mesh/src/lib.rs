@@ -28,7 +28,7 @@ pub mod pose;
 pub mod trimesh;
 pub mod wireframe;
 
-pub use camera::{PinholeCamera, StereoCalibration};
+pub use camera::{LensCamera, PinholeCamera, StereoCalibration};
 pub use library::Library;
 pub use model::{Grasp, Model, ModelSpec};
 pub use trimesh::TriMesh;

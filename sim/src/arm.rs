@@ -74,6 +74,8 @@ pub struct SimArm {
     effort: [f32; 6],
     gripper_body: RigidBodyHandle,
     gripper_from_tcp: Isometry3<f64>,
+    /// The arm as built, when it is not its drawing: its encoders are read to their counts.
+    as_built: Option<crate::realism::ArmAsBuilt>,
     /// Rigid bodies of the arm's links (for contact queries), and their URDF link names.
     pub bodies: Vec<RigidBodyHandle>,
     pub link_names: Vec<String>,
@@ -83,13 +85,14 @@ pub struct SimArm {
 
 impl SimArm {
     /// Loads the URDF at `path` into `cell` with its base at `world_from_base`, the arm joints at
-    /// `q` and the fingers at `opening`.
+    /// `q` and the fingers at `opening`; built off its drawing as `as_built` says, if given.
     pub fn insert(
         cell: &mut Cell,
         path: &Path,
         world_from_base: &Isometry3<f64>,
         q: &[f64; 6],
         opening: f64,
+        as_built: Option<&crate::realism::ArmAsBuilt>,
     ) -> Result<SimArm, SimArmError> {
         let file = path.display().to_string();
         let err = |message: String| SimArmError::Urdf { file: file.clone(), message };
@@ -104,7 +107,14 @@ impl SimArm {
             rigid_body_blueprint: RigidBodyBuilder::dynamic().can_sleep(false),
             ..Default::default()
         };
-        let (robot, urdf) = UrdfRobot::from_file(path, options, None).map_err(|e| err(e.to_string()))?;
+        let (robot, urdf) = match as_built {
+            None => UrdfRobot::from_file(path, options, None).map_err(|e| err(e.to_string()))?,
+            Some(built) => {
+                let text = built.urdf_text(path).map_err(err)?;
+                let dir = path.parent().unwrap_or(Path::new("."));
+                UrdfRobot::from_str(&text, options, dir).map_err(|e| err(e.to_string()))?
+            }
+        };
         let joint_names: Vec<String> =
             robot.joints.iter().map(|j| urdf.joints[j.urdf_joint_index].name.clone()).collect();
         let link_names: Vec<String> = robot.links.iter().map(|l| urdf.links[l.urdf_link_index].name.clone()).collect();
@@ -145,6 +155,7 @@ impl SimArm {
             link_names: link_names.clone(),
             finger_bodies: [body(FINGER_JOINTS[0])?, body(FINGER_JOINTS[1])?],
             world_from_base: *world_from_base,
+            as_built: as_built.cloned(),
         };
         arm.couple_fingers(cell);
         arm.place(cell, q, opening);
@@ -209,9 +220,12 @@ impl SimArm {
         }
     }
 
-    /// Measured arm joint values.
+    /// Measured arm joint values: the encoders' readings (to their counts, for an arm as built).
     pub fn joints(&self, cell: &Cell) -> [f64; 6] {
-        std::array::from_fn(|k| self.coordinate(cell, self.joints[k]))
+        std::array::from_fn(|k| {
+            let q = self.coordinate(cell, self.joints[k]);
+            self.as_built.as_ref().map_or(q, |b| b.read_encoder(k, q))
+        })
     }
 
     /// Measured opening between the pads.

@@ -9,23 +9,54 @@
 //! vignetted ([`crate::optics`]); then read out by the sensor ([`crate::sensor`]). The depth
 //! and id maps are the true camera's, pixel for pixel of the distorted image.
 
-use crate::lighting::{Lighting, Surface};
+use crate::lighting::{Lighting, Surface, TextureGrid};
 use crate::optics;
 use crate::physics::StaticBox;
 use crate::realism::{CameraAsBuilt, Effects, Finish, LampSpec, Preset, RigAsBuilt};
 use crate::render::{Frame, Light, RenderScene, ShadedTriangle, render_radiance, render_stereo};
 use crate::sensor::{FixedPattern, read_out};
 use crate::world::WorldFile;
-use mesh::{Model, StereoCalibration, TriMesh};
-use nalgebra::{Point3, Vector3};
+use mesh::{Model, PinholeCamera, StereoCalibration, TriMesh};
+use nalgebra::Point3;
 use rand::{SeedableRng, rngs::Xoshiro256PlusPlus};
 use rand_distr::{Distribution, Normal};
 use rayon::prelude::*;
+use std::sync::Arc;
 
 /// Relative spread of one part's albedo about its model's: uniform within +-10%.
 pub const ALBEDO_SPREAD: f64 = 0.10;
 /// The arm's links: painted metal.
 pub const ARM_FINISH: Finish = Finish { specular: 0.1, roughness: 0.35, texture: 0.0, albedo_scale: 1.0 };
+
+/// What a realistic camera's every frame shares, worked out once: the virtual pinhole, where
+/// each pixel looks in it, the pixel's ideal ray and vignetting, and the sensor's patterns.
+#[derive(Debug)]
+pub struct CameraImaging {
+    virt: PinholeCamera,
+    /// Per pixel: the virtual pinhole's coordinates it takes its light from.
+    source: Vec<(f32, f32)>,
+    vignette: Vec<f32>,
+    pattern: FixedPattern,
+}
+
+impl CameraImaging {
+    fn new(cam: &CameraAsBuilt, effects: &Effects) -> CameraImaging {
+        let virt = optics::virtual_pinhole(cam);
+        let (w, h) = (cam.pinhole.width as usize, cam.pinhole.height as usize);
+        let ray: Vec<(f64, f64)> =
+            (0..w * h).into_par_iter().map(|i| optics::ideal_normalised(cam, (i % w) as f64, (i / w) as f64)).collect();
+        let source =
+            ray.iter().map(|&(x, y)| ((virt.fx * x + virt.cx) as f32, (virt.fy * y + virt.cy) as f32)).collect();
+        let vignette = ray
+            .iter()
+            .map(
+                |&(x, y)| if effects.vignetting { optics::vignetting(x, y, cam.lens.vignetting_exponent) } else { 1.0 },
+            )
+            .collect();
+        let pattern = FixedPattern::new(&cam.sensor, w * h, cam.pattern_seed);
+        CameraImaging { virt, source, vignette, pattern }
+    }
+}
 
 /// Everything that forms the cell's images.
 #[derive(Debug, Clone)]
@@ -42,6 +73,9 @@ pub struct Imaging {
     /// The ideal preset's Gaussian noise, grey levels.
     pub noise_sigma: f64,
     table_texture: f32,
+    /// The realistic cameras' shared work (empty in the ideal preset).
+    cameras: Option<Arc<[CameraImaging; 2]>>,
+    texture: Option<Arc<TextureGrid>>,
 }
 
 impl Imaging {
@@ -49,17 +83,28 @@ impl Imaging {
         let effects = world.effects();
         let lamps = match &world.lamps {
             Some(l) => l.clone(),
-            None => vec![LampSpec::from_light(&world.light)],
+            None => vec![LampSpec::from_light(world.light.direction, world.light.diffuse)],
         };
+        let rig = crate::rig::as_built(&world.cameras, &effects, world.as_built_seed);
+        let cameras = effects.any_imaging().then(|| {
+            let (l, r) =
+                rayon::join(|| CameraImaging::new(&rig.left, &effects), || CameraImaging::new(&rig.right, &effects));
+            Arc::new([l, r])
+        });
+        let [sx, sy] = world.table.size_m;
+        let texture = (effects.any_imaging() && effects.table_texture && world.table.texture > 0.0)
+            .then(|| Arc::new(TextureGrid::new(sx / 2.0, sy / 2.0)));
         Imaging {
             preset: world.realism,
             effects,
             nominal: crate::rig::calibration(&world.cameras),
-            rig: RigAsBuilt::new(&world.cameras, &effects, world.as_built_seed),
+            rig,
             lamps,
             light: Light::from(&world.light),
             noise_sigma: world.render.noise_sigma,
             table_texture: world.table.texture as f32,
+            cameras,
+            texture,
         }
     }
 
@@ -101,53 +146,54 @@ impl Imaging {
 
     /// Both cameras' frames of `scene`; `seed` draws the capture's noise.
     pub fn render_stereo(&self, scene: &RenderScene, seed: u64) -> (Frame, Frame) {
-        if !self.effects.any_imaging() {
+        let Some(cameras) = &self.cameras else {
             return render_stereo(scene, &self.rig.calibration(), self.noise_sigma, seed);
-        }
-        let lighting = Lighting::new(&self.lamps, self.light, &self.effects, &scene.corners());
+        };
+        let lighting =
+            Lighting::with_texture(&self.lamps, self.light, &self.effects, &scene.corners(), self.texture.clone());
         rayon::join(
-            || self.render_camera(scene, &lighting, &self.rig.left, seed.wrapping_mul(2)),
-            || self.render_camera(scene, &lighting, &self.rig.right, seed.wrapping_mul(2).wrapping_add(1)),
+            || self.render_camera(scene, &lighting, &self.rig.left, &cameras[0], seed.wrapping_mul(2)),
+            || self.render_camera(scene, &lighting, &self.rig.right, &cameras[1], seed.wrapping_mul(2).wrapping_add(1)),
         )
     }
 
     /// One realistic camera's frame.
-    pub fn render_camera(&self, scene: &RenderScene, lighting: &Lighting, cam: &CameraAsBuilt, seed: u64) -> Frame {
-        let virt = optics::virtual_pinhole(cam);
+    fn render_camera(
+        &self,
+        scene: &RenderScene,
+        lighting: &Lighting,
+        cam: &CameraAsBuilt,
+        shared: &CameraImaging,
+        seed: u64,
+    ) -> Frame {
+        let virt = &shared.virt;
         let eye = cam.pinhole.centre();
         let shade = |t: &ShadedTriangle, point: &Point3<f64>| {
             lighting.shade(&Surface { point: *point, normal: t.normal, albedo: t.albedo, finish: t.finish }, &eye)
         };
-        let seen = render_radiance(scene, &virt, &shade);
+        let seen = render_radiance(scene, virt, &shade);
         let (w, h) = (cam.pinhole.width as usize, cam.pinhole.height as usize);
-        let cam_from_world = cam.pinhole.cam_from_world();
-        let mut frame = Frame { width: w, height: h, image: vec![0; w * h], depth: vec![0.0; w * h], ids: vec![0; w * h] };
+        let mut frame =
+            Frame { width: w, height: h, image: vec![0; w * h], depth: vec![0.0; w * h], ids: vec![0; w * h] };
         let mut radiance = vec![0.0f32; w * h];
-        let mut vignette = vec![1.0f32; w * h];
         radiance
             .par_chunks_mut(w)
-            .zip(vignette.par_chunks_mut(w))
             .zip(frame.depth.par_chunks_mut(w).zip(frame.ids.par_chunks_mut(w)))
             .enumerate()
-            .for_each(|(v, ((rad, vig), (depth, ids)))| {
+            .for_each(|(v, (rad, (depth, ids)))| {
                 for u in 0..w {
-                    let (x, y) = optics::ideal_normalised(cam, u as f64, v as f64);
-                    let (vx, vy) = (virt.fx * x + virt.cx, virt.fy * y + virt.cy);
+                    let (vx, vy) = shared.source[v * w + u];
+                    let (vx, vy) = (vx as f64, vy as f64);
                     rad[u] = optics::bilinear(&seen.radiance, seen.width, seen.height, vx, vy);
-                    if self.effects.vignetting {
-                        vig[u] = optics::vignetting(x, y, cam.lens.vignetting_exponent);
-                    }
                     let nearest = (vy.round() as usize).min(seen.height - 1) * seen.width
                         + (vx.round() as usize).min(seen.width - 1);
                     let t = seen.centre[nearest];
                     if t != u32::MAX {
-                        let tri = &scene.triangles[t as usize];
-                        let n = cam_from_world.rotation * tri.normal;
-                        let a = cam_from_world * tri.corners[0];
-                        let z = n.dot(&a.coords) / n.dot(&Vector3::new(x, y, 1.0));
+                        let [p, q, r] = seen.inv_z[t as usize];
+                        let z = 1.0 / (p * vx + q * vy + r);
                         if z.is_finite() && z > 0.0 {
                             depth[u] = z as f32;
-                            ids[u] = tri.id;
+                            ids[u] = seen.ids[t as usize];
                         }
                     }
                 }
@@ -163,10 +209,9 @@ impl Imaging {
                 .collect();
             radiance = optics::blur_by_sigma(&radiance, w, &sigma);
         }
-        radiance.iter_mut().zip(&vignette).for_each(|(r, v)| *r *= v);
+        radiance.iter_mut().zip(&shared.vignette).for_each(|(r, v)| *r *= v);
         frame.image = if self.effects.sensor {
-            let pattern = FixedPattern::new(&cam.sensor, w * h, cam.pattern_seed);
-            read_out(&cam.sensor, &pattern, &radiance, w, seed)
+            read_out(&cam.sensor, &shared.pattern, &radiance, w, seed)
         } else {
             gaussian_read_out(&radiance, w, self.noise_sigma, seed)
         };
@@ -180,7 +225,8 @@ fn gaussian_read_out(radiance: &[f32], w: usize, sigma: f64, seed: u64) -> Vec<u
     let noise = Normal::new(0.0f32, sigma as f32).expect("noise sigma is checked to be >= 0");
     let mut out = vec![0u8; radiance.len()];
     out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(y as u64));
+        let mut rng =
+            Xoshiro256PlusPlus::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(y as u64));
         for (x, o) in row.iter_mut().enumerate() {
             let grain = if sigma > 0.0 { noise.sample(&mut rng) } else { 0.0 };
             *o = ((255.0 * radiance[y * w + x] + grain).clamp(0.0, 255.0) + 0.5) as u8;

@@ -22,17 +22,17 @@
 //! Frames: `world` has its origin at the centre of the table top, `z` up.
 
 pub mod arm;
+pub mod convert;
 pub mod imaging;
 pub mod lighting;
 pub mod optics;
-pub mod realism;
-pub mod sensor;
-pub mod convert;
 pub mod physics;
+pub mod realism;
 pub mod record;
 pub mod render;
 pub mod rig;
 pub mod scene;
+pub mod sensor;
 pub mod shape_mesh;
 pub mod world;
 

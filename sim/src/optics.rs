@@ -38,13 +38,7 @@ pub fn virtual_pinhole(cam: &CameraAsBuilt) -> PinholeCamera {
     }
     let (x0, y0) = ((lo_x - MARGIN_PX).floor(), (lo_y - MARGIN_PX).floor());
     let (x1, y1) = ((hi_x + MARGIN_PX).ceil(), (hi_y + MARGIN_PX).ceil());
-    PinholeCamera {
-        width: (x1 - x0) as u32 + 1,
-        height: (y1 - y0) as u32 + 1,
-        cx: -x0,
-        cy: -y0,
-        ..p.clone()
-    }
+    PinholeCamera { width: (x1 - x0) as u32 + 1, height: (y1 - y0) as u32 + 1, cx: -x0, cy: -y0, ..p.clone() }
 }
 
 /// The ideal (undistorted) normalised coordinates of the ray the lens brings to pixel `(u, v)`.
@@ -70,29 +64,70 @@ pub fn vignetting(x: f64, y: f64, exponent: f64) -> f32 {
     (1.0 + x * x + y * y).powf(-exponent / 2.0) as f32
 }
 
-/// Blurs `image` (`w` wide) with a Gaussian whose sigma varies per pixel (`sigma[i]`, pixels):
-/// the image blurred at a ladder of sigmas [`SIGMA_STEP`] apart, each pixel blended between
-/// the two rungs round its own sigma.
+/// Blurs `image` (`w` wide) with a Gaussian whose sigma varies per pixel (`sigma[i]`, pixels),
+/// in two passes (along rows, then columns), each pixel weighing its neighbours by its own
+/// kernel: the blend of the two Gaussians of a ladder [`SIGMA_STEP`] apart that bracket its
+/// sigma. Where the sigma is the same over a kernel's reach this is that Gaussian blur; across
+/// a depth step each side keeps its own spread.
 pub fn blur_by_sigma(image: &[f32], w: usize, sigma: &[f32]) -> Vec<f32> {
     let lo = sigma.iter().copied().fold(f32::MAX, f32::min).max(0.0);
-    let hi = sigma.iter().copied().fold(0.0f32, f32::max);
-    let rungs = (((hi - lo) / SIGMA_STEP).ceil() as usize).max(0) + 1;
-    let ladder: Vec<f32> = (0..rungs).map(|k| lo + k as f32 * SIGMA_STEP).collect();
-    let blurred: Vec<Vec<f32>> = ladder.par_iter().map(|&s| gaussian_blur(image, w, s)).collect();
-    (0..image.len())
-        .into_par_iter()
-        .map(|i| {
-            let t = if rungs == 1 { 0.0 } else { (sigma[i] - lo) / SIGMA_STEP };
-            let k = (t.floor() as usize).min(rungs - 1);
-            let a = t - k as f32;
-            if k + 1 < rungs { (1.0 - a) * blurred[k][i] + a * blurred[k + 1][i] } else { blurred[k][i] }
-        })
-        .collect()
+    let hi = sigma.iter().copied().fold(0.0f32, f32::max).max(lo);
+    let rungs = ((hi - lo) / SIGMA_STEP).ceil() as usize + 2;
+    let kernels: Vec<Vec<f32>> = (0..rungs).map(|k| gaussian_kernel(lo + k as f32 * SIGMA_STEP)).collect();
+    // Each pixel's blended kernel, as (rung, weight of the next rung).
+    let rung_of = |s: f32| {
+        let t = ((s - lo) / SIGMA_STEP).max(0.0);
+        let k = (t.floor() as usize).min(rungs - 2);
+        (k, (t - k as f32).min(1.0))
+    };
+    let h = image.len() / w;
+    let mut across = vec![0.0f32; image.len()];
+    across.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        for (x, out) in row.iter_mut().enumerate() {
+            let (k, a) = rung_of(sigma[y * w + x]);
+            *out = blended_tap(&kernels[k], &kernels[k + 1], a, x, w, |i| image[y * w + i]);
+        }
+    });
+    let mut out = vec![0.0f32; image.len()];
+    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        for (x, o) in row.iter_mut().enumerate() {
+            let (k, a) = rung_of(sigma[y * w + x]);
+            *o = blended_tap(&kernels[k], &kernels[k + 1], a, y, h, |i| across[i * w + x]);
+        }
+    });
+    out
 }
 
-/// Steps between the sigmas the image is blurred at: blending two Gaussians this close gives
-/// a spread within 1% of the Gaussian between them.
+/// One pixel of a pass: the neighbours at `centre - r ..= centre + r` along a line of `len`
+/// (clamped at its ends), weighed by `(1 - a) near + a far`; `far` is the wider kernel.
+#[inline(always)]
+fn blended_tap(near: &[f32], far: &[f32], a: f32, centre: usize, len: usize, at: impl Fn(usize) -> f32) -> f32 {
+    let (rn, rf) = (near.len() / 2, far.len() / 2);
+    let mut sum = 0.0;
+    for (j, wf) in far.iter().enumerate() {
+        let off = j as isize - rf as isize;
+        let wn = if off.unsigned_abs() <= rn { near[(off + rn as isize) as usize] } else { 0.0 };
+        let pos = (centre as isize + off).clamp(0, len as isize - 1) as usize;
+        sum += (a * wf + (1.0 - a) * wn) * at(pos);
+    }
+    sum
+}
+
+/// Steps between the sigmas of the kernels blended: blending two Gaussians this close gives a
+/// spread within 1% of the Gaussian between them.
 pub const SIGMA_STEP: f32 = 0.125;
+
+/// A normalised Gaussian kernel reaching 3 sigma (a single tap for sigma 0).
+fn gaussian_kernel(s: f32) -> Vec<f32> {
+    if s <= 1e-3 {
+        return vec![1.0];
+    }
+    let r = (3.0 * s).ceil() as i64;
+    let mut kernel: Vec<f32> = (-r..=r).map(|i| (-(i * i) as f32 / (2.0 * s * s)).exp()).collect();
+    let total: f32 = kernel.iter().sum();
+    kernel.iter_mut().for_each(|k| *k /= total);
+    kernel
+}
 
 /// A separable Gaussian blur of sigma `s` pixels, borders clamped.
 pub fn gaussian_blur(image: &[f32], w: usize, s: f32) -> Vec<f32> {
@@ -100,10 +135,8 @@ pub fn gaussian_blur(image: &[f32], w: usize, s: f32) -> Vec<f32> {
         return image.to_vec();
     }
     let h = image.len() / w;
-    let r = (3.0 * s).ceil() as i64;
-    let mut kernel: Vec<f32> = (-r..=r).map(|i| (-(i * i) as f32 / (2.0 * s * s)).exp()).collect();
-    let total: f32 = kernel.iter().sum();
-    kernel.iter_mut().for_each(|k| *k /= total);
+    let kernel = gaussian_kernel(s);
+    let r = (kernel.len() / 2) as i64;
     let mut across = vec![0.0f32; image.len()];
     across.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
         for (x, out) in row.iter_mut().enumerate() {
@@ -130,6 +163,18 @@ pub fn gaussian_blur(image: &[f32], w: usize, s: f32) -> Vec<f32> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_uniform_sigma_blurs_as_the_plain_gaussian() {
+        let w = 40;
+        let image: Vec<f32> = (0..w * 30).map(|i| ((i * 7919) % 13) as f32).collect();
+        for s in [0.9f32, 1.2] {
+            let plain = gaussian_blur(&image, w, s);
+            let varying = blur_by_sigma(&image, w, &vec![s; image.len()]);
+            let worst = plain.iter().zip(&varying).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+            assert!(worst < 1e-4, "sigma {s}: differs by {worst}");
+        }
+    }
 
     #[test]
     fn a_blurred_step_has_the_asked_spread() {

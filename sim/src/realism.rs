@@ -12,12 +12,12 @@
 //! their sensors' fixed patterns, the arm's offsets) is drawn from `as_built_seed`; what
 //! differs between parts (their albedo) from the scene's seed.
 
-use crate::world::{CameraSpec, LightSpec, RigSpec};
 use mesh::PinholeCamera;
 use mesh::distortion::PlumbBob;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rand::{SeedableRng, rngs::StdRng};
 use rand_distr::{Distribution, Normal};
+use rapier3d_urdf::urdf_rs;
 use serde::Deserialize;
 
 /// The two presets.
@@ -61,7 +61,7 @@ pub struct EffectsSpec {
 }
 
 /// The effects as switched for one world.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, Deserialize)]
 pub struct Effects {
     pub distortion: bool,
     pub blur: bool,
@@ -128,7 +128,7 @@ pub struct LensSpec {
 }
 
 /// A camera's lens as used.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, Deserialize)]
 pub struct Lens {
     pub distortion: PlumbBob,
     pub focal_length_mm: f64,
@@ -194,7 +194,7 @@ pub struct SensorSpec {
 }
 
 /// A camera's sensor as used.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, Deserialize)]
 pub struct Sensor {
     pub full_well_e: f64,
     pub white_e: f64,
@@ -256,7 +256,7 @@ pub enum Side {
 }
 
 /// One camera as built: where it truly stands, its lens and its sensor.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, Deserialize)]
 pub struct CameraAsBuilt {
     /// The true pinhole: the nominal intrinsics at the true mounting.
     pub pinhole: PinholeCamera,
@@ -272,18 +272,28 @@ pub struct CameraAsBuilt {
 }
 
 /// Both cameras as built.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, Deserialize)]
 pub struct RigAsBuilt {
     pub left: CameraAsBuilt,
     pub right: CameraAsBuilt,
 }
 
+/// What the world file says of one camera beyond its nominal pinhole.
+#[derive(Debug, Clone, Copy)]
+pub struct CameraSpecs<'a> {
+    pub nominal: &'a PinholeCamera,
+    pub lens: Option<&'a LensSpec>,
+    pub sensor: Option<&'a SensorSpec>,
+    pub mounting: Option<&'a MountingSpec>,
+}
+
 impl RigAsBuilt {
-    pub fn new(rig: &RigSpec, effects: &Effects, as_built_seed: u64) -> RigAsBuilt {
+    /// Both cameras as built from their specs, the mounting errors drawn from `as_built_seed`.
+    pub fn new(left: CameraSpecs, right: CameraSpecs, effects: &Effects, as_built_seed: u64) -> RigAsBuilt {
         let mut rng = StdRng::seed_from_u64(as_built_seed.wrapping_mul(0x5851_F42D_4C95_7F2D).wrapping_add(17));
-        let left = CameraAsBuilt::new(&rig.left, Side::Left, effects, &mut rng, as_built_seed.wrapping_mul(2));
+        let left = CameraAsBuilt::new(left, Side::Left, effects, &mut rng, as_built_seed.wrapping_mul(2));
         let right =
-            CameraAsBuilt::new(&rig.right, Side::Right, effects, &mut rng, as_built_seed.wrapping_mul(2).wrapping_add(1));
+            CameraAsBuilt::new(right, Side::Right, effects, &mut rng, as_built_seed.wrapping_mul(2).wrapping_add(1));
         RigAsBuilt { left, right }
     }
 
@@ -293,9 +303,14 @@ impl RigAsBuilt {
 }
 
 impl CameraAsBuilt {
-    fn new(spec: &CameraSpec, side: Side, effects: &Effects, rng: &mut StdRng, pattern_seed: u64) -> CameraAsBuilt {
-        let nominal = crate::rig::camera(spec);
-        let m = spec.mounting.clone().unwrap_or_default();
+    /// The true camera: its pinhole at the true mounting, with its lens's distortion.
+    pub fn lens_camera(&self) -> mesh::LensCamera {
+        mesh::LensCamera { pinhole: self.pinhole.clone(), distortion: self.lens.distortion }
+    }
+
+    fn new(spec: CameraSpecs, side: Side, effects: &Effects, rng: &mut StdRng, pattern_seed: u64) -> CameraAsBuilt {
+        let nominal = spec.nominal.clone();
+        let m = spec.mounting.cloned().unwrap_or_default();
         // Both draws are made whether or not they are used, so switching one effect leaves the
         // other draws as they were.
         let gauss = |rng: &mut StdRng, sigma: f64| Normal::new(0.0, sigma).expect("sigma is checked").sample(rng);
@@ -310,12 +325,12 @@ impl CameraAsBuilt {
             Isometry3::identity()
         };
         let pinhole = PinholeCamera { world_from_cam: nominal.world_from_cam * nominal_from_true, ..nominal };
-        let mut lens = Lens::resolve(&spec.lens.clone().unwrap_or_default(), side);
+        let mut lens = Lens::resolve(&spec.lens.cloned().unwrap_or_default(), side);
         if !effects.distortion {
             lens.distortion = PlumbBob::default();
         }
-        let sensor = Sensor::resolve(&spec.sensor.clone().unwrap_or_default(), side);
-        let pixel_pitch_mm = lens.focal_length_mm / spec.focal_px;
+        let sensor = Sensor::resolve(&spec.sensor.cloned().unwrap_or_default(), side);
+        let pixel_pitch_mm = lens.focal_length_mm / nominal.fx;
         CameraAsBuilt { pinhole, nominal_from_true, lens, sensor, pixel_pitch_mm, pattern_seed }
     }
 }
@@ -342,10 +357,10 @@ fn default_lamp_radius() -> f64 {
 pub const DEFAULT_LAMP_DISTANCE_M: f64 = 1.3;
 
 impl LampSpec {
-    /// The lamp in the direction of a world's distant light, as bright at the origin.
-    pub fn from_light(light: &LightSpec) -> LampSpec {
-        let d = Vector3::from(light.direction).normalize() * DEFAULT_LAMP_DISTANCE_M;
-        LampSpec { position_m: [d.x, d.y, d.z], radius_m: default_lamp_radius(), irradiance: light.diffuse }
+    /// The lamp in the `direction` of a world's distant light, as bright (`diffuse`) at the origin.
+    pub fn from_light(direction: [f64; 3], diffuse: f64) -> LampSpec {
+        let d = Vector3::from(direction).normalize() * DEFAULT_LAMP_DISTANCE_M;
+        LampSpec { position_m: [d.x, d.y, d.z], radius_m: default_lamp_radius(), irradiance: diffuse }
     }
 
     pub fn position(&self) -> Point3<f64> {
@@ -382,6 +397,85 @@ pub struct ArmAsBuiltSpec {
     pub encoder_counts_per_rev: Option<f64>,
     /// Counts per metre of a sliding joint's encoder.
     pub encoder_counts_per_m: Option<f64>,
+}
+
+/// The arm as built: each arm joint's zero offset (the encoder reads `q` where the drawing's
+/// joint stands at `q + offset`), each joint origin's position error (link lengths off), and
+/// the encoders' resolution. The simulated arm moves as built; the robot server knows only the
+/// URDF and the encoder readings.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, Deserialize)]
+pub struct ArmAsBuilt {
+    /// Per arm joint (`robot::arm::ARM_JOINTS` order): radians, or metres for a sliding joint.
+    pub joint_offsets: [f64; 6],
+    /// Per arm joint: the shift of its origin in its parent link, metres.
+    pub origin_errors_m: [[f64; 3]; 6],
+    pub encoder_counts_per_rev: f64,
+    pub encoder_counts_per_m: f64,
+}
+
+impl ArmAsBuilt {
+    /// The arm of `as_built_seed` (`None` with the effect off).
+    pub fn new(spec: Option<&ArmAsBuiltSpec>, effects: &Effects, as_built_seed: u64) -> Option<ArmAsBuilt> {
+        if !effects.arm_as_built {
+            return None;
+        }
+        let spec = spec.cloned().unwrap_or_default();
+        let mut rng = StdRng::seed_from_u64(as_built_seed.wrapping_mul(0xA076_1D64_78BD_642F).wrapping_add(29));
+        let angle = Normal::new(0.0, spec.joint_offset_sigma_deg.unwrap_or(0.1)).expect("sigma is checked");
+        let length = Normal::new(0.0, spec.link_length_sigma_mm.unwrap_or(0.2)).expect("sigma is checked");
+        // The first joint (`zed`) slides: its offset in millimetres as the others' in degrees.
+        let joint_offsets = std::array::from_fn(|k| {
+            let v = angle.sample(&mut rng);
+            if k == 0 { v * 1e-3 } else { v.to_radians() }
+        });
+        let origin_errors_m = std::array::from_fn(|_| std::array::from_fn(|_| length.sample(&mut rng) * 1e-3));
+        Some(ArmAsBuilt {
+            joint_offsets,
+            origin_errors_m,
+            encoder_counts_per_rev: spec.encoder_counts_per_rev.unwrap_or(16384.0),
+            encoder_counts_per_m: spec.encoder_counts_per_m.unwrap_or(1e5),
+        })
+    }
+
+    /// The URDF as built: each arm joint `j` of the drawing, `parent_from_child(q) = O M(q)`,
+    /// becomes `T(e_j) O M(offset_j)`, so the joint at `q` stands where the drawing's would at
+    /// `q + offset_j`, its origin shifted by `e_j`.
+    pub fn apply(&self, robot: &mut urdf_rs::Robot) -> Result<(), String> {
+        for (k, name) in robot::arm::ARM_JOINTS.iter().enumerate() {
+            let joint = robot.joints.iter_mut().find(|j| j.name == *name).ok_or(format!("no joint `{name}`"))?;
+            let axis = Vector3::from(joint.axis.xyz.0);
+            let motion = match joint.joint_type {
+                urdf_rs::JointType::Prismatic => Isometry3::translation(
+                    axis.x * self.joint_offsets[k],
+                    axis.y * self.joint_offsets[k],
+                    axis.z * self.joint_offsets[k],
+                ),
+                _ => Isometry3::rotation(axis.normalize() * self.joint_offsets[k]),
+            };
+            let [x, y, z] = self.origin_errors_m[k];
+            let origin = Isometry3::translation(x, y, z) * robot::arm::origin_pose(&joint.origin) * motion;
+            let (roll, pitch, yaw) = origin.rotation.euler_angles();
+            let t = origin.translation.vector;
+            joint.origin =
+                urdf_rs::Pose { xyz: urdf_rs::Vec3([t.x, t.y, t.z]), rpy: urdf_rs::Vec3([roll, pitch, yaw]) };
+        }
+        Ok(())
+    }
+
+    /// The URDF file at `path` as built, as URDF text.
+    pub fn urdf_text(&self, path: &std::path::Path) -> Result<String, String> {
+        let text = std::fs::read_to_string(path).map_err(|e| e.to_string())?;
+        let mut drawn = urdf_rs::read_from_string(&text).map_err(|e| e.to_string())?;
+        self.apply(&mut drawn)?;
+        urdf_rs::write_to_string(&drawn).map_err(|e| e.to_string())
+    }
+
+    /// What arm joint `k`'s encoder reads when the joint stands at `q`: `q` to the nearest count.
+    pub fn read_encoder(&self, k: usize, q: f64) -> f64 {
+        let step =
+            if k == 0 { 1.0 / self.encoder_counts_per_m } else { std::f64::consts::TAU / self.encoder_counts_per_rev };
+        (q / step).round() * step
+    }
 }
 
 #[cfg(test)]

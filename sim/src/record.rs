@@ -15,8 +15,16 @@ pub const DEPTH_UNIT_M: f64 = 1e-4;
 pub struct SceneRecord {
     pub world: String,
     pub seed: u64,
-    /// What the vision pipeline may read: both cameras, `world_from_cam` each.
+    /// The world's `realism` preset and the effects in force.
+    pub realism: crate::realism::Preset,
+    pub effects: crate::realism::Effects,
+    /// What the vision pipeline may read: both cameras, `world_from_cam` each, as the world
+    /// file gives them (nominal: no lens distortion, the mounting as drawn). In the ideal
+    /// preset they are also the truth.
     pub calibration: StereoCalibration,
+    /// Ground truth, for evaluation only: the cameras as built (true mounting, lens, sensor).
+    /// The depth and id maps are these cameras', pixel for pixel.
+    pub as_built: crate::realism::RigAsBuilt,
     /// Ground truth, for evaluation only.
     pub objects: Vec<ObjectRecord>,
     /// The arm's links as the id maps show them (ground truth too: where the arm stood).
@@ -43,11 +51,14 @@ pub struct LinkRecord {
 }
 
 impl SceneRecord {
-    pub fn new(scn: &Scenario, scene: &Scene, calibration: &StereoCalibration) -> SceneRecord {
+    pub fn new(scn: &Scenario, scene: &Scene, imaging: &crate::imaging::Imaging) -> SceneRecord {
         SceneRecord {
             world: scn.path.display().to_string(),
             seed: scene.seed,
-            calibration: calibration.clone(),
+            realism: imaging.preset,
+            effects: imaging.effects,
+            calibration: imaging.nominal.clone(),
+            as_built: imaging.rig.clone(),
             objects: scene
                 .objects
                 .iter()

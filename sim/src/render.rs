@@ -208,8 +208,13 @@ pub(crate) struct RadianceImage {
     pub(crate) width: usize,
     pub(crate) height: usize,
     pub(crate) radiance: Vec<f32>,
-    /// Index into the [`RenderScene`]'s triangles, or `u32::MAX` for nothing.
+    /// Per pixel, the drawn triangle at its centre (an index into `inv_z` and `ids`), or
+    /// `u32::MAX` for nothing.
     pub(crate) centre: Vec<u32>,
+    /// Per drawn triangle, the plane of inverse depth over the pixels: `1/z = p x + q y + r`.
+    pub(crate) inv_z: Vec<[f64; 3]>,
+    /// Per drawn triangle, its id-map value.
+    pub(crate) ids: Vec<u16>,
 }
 
 /// Renders `scene` through `cam` as radiance, each pixel's covered samples grouped by the
@@ -225,8 +230,16 @@ pub(crate) fn render_radiance(
     for (i, t) in tris.iter_mut().enumerate() {
         t.payload = f32::from_bits(i as u32 + 1);
     }
-    let tiles = draw_tiles(&tris, w, h, |tris, area, pixels, _| resolve_radiance(scene, cam, tris, area, pixels, shade));
-    let mut out = RadianceImage { width: w, height: h, radiance: vec![0.0; w * h], centre: vec![u32::MAX; w * h] };
+    let tiles =
+        draw_tiles(&tris, w, h, |tris, area, pixels, _| resolve_radiance(scene, cam, tris, area, pixels, shade));
+    let mut out = RadianceImage {
+        width: w,
+        height: h,
+        radiance: vec![0.0; w * h],
+        centre: vec![u32::MAX; w * h],
+        inv_z: tris.iter().map(|t| t.inv_z).collect(),
+        ids: tris.iter().map(|t| t.id).collect(),
+    };
     for (area, radiance, centre) in &tiles {
         for row in 0..area.h {
             let (src, dst) = (row * area.w, (area.y0 + row) * w + area.x0);
@@ -249,9 +262,10 @@ fn resolve_radiance(
     let n = area.w * area.h;
     let (mut radiance, mut centre) = (vec![0.0f32; n], vec![u32::MAX; n]);
     let eye = cam.centre();
+    let world_from_cam = cam.world_from_cam.rotation.to_rotation_matrix();
     for (p, px) in pixels.iter().enumerate() {
         let (u, v) = ((area.x0 + p % area.w) as f64, (area.y0 + p / area.w) as f64);
-        let (_, dir) = cam.ray_world(u, v);
+        let dir = world_from_cam * Vector3::new((u - cam.cx) / cam.fx, (v - cam.cy) / cam.fy, 1.0);
         let mut seen: [(u32, u32); SAMPLES] = [(0, 0); SAMPLES];
         let mut kinds = 0;
         for s in px.shade {
@@ -278,7 +292,7 @@ fn resolve_radiance(
         }
         radiance[p] = sum / SAMPLES as f32;
         if px.centre != NO_TRIANGLE {
-            centre[p] = tris[px.centre as usize].source;
+            centre[p] = px.centre;
         }
     }
     (area, radiance, centre)

@@ -1,4 +1,4 @@
-//! The stereo rig of a world file as calibrated pinhole cameras.
+//! The stereo rig of a world file: as calibrated pinhole cameras (nominal), and as built.
 
 use crate::world::{CameraSpec, RigSpec};
 use mesh::{PinholeCamera, StereoCalibration};
@@ -19,4 +19,19 @@ pub fn camera(spec: &CameraSpec) -> PinholeCamera {
 
 pub fn calibration(rig: &RigSpec) -> StereoCalibration {
     StereoCalibration { left: camera(&rig.left), right: camera(&rig.right) }
+}
+
+/// The rig as built: each camera's lens, sensor and true mounting, from the world file's specs
+/// and `as_built_seed`.
+pub fn as_built(rig: &RigSpec, effects: &crate::realism::Effects, as_built_seed: u64) -> crate::realism::RigAsBuilt {
+    let (left, right) = (camera(&rig.left), camera(&rig.right));
+    fn specs<'a>(spec: &'a CameraSpec, nominal: &'a PinholeCamera) -> crate::realism::CameraSpecs<'a> {
+        crate::realism::CameraSpecs {
+            nominal,
+            lens: spec.lens.as_ref(),
+            sensor: spec.sensor.as_ref(),
+            mounting: spec.mounting.as_ref(),
+        }
+    }
+    crate::realism::RigAsBuilt::new(specs(&rig.left, &left), specs(&rig.right, &right), effects, as_built_seed)
 }

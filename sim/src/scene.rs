@@ -138,7 +138,9 @@ impl Scene {
         let mut cell = Cell::new(&scn.world.physics, &statics);
         let arm = scn.robot_urdf.as_ref().zip(scn.world.robot.as_ref()).map(|(urdf, spec)| {
             // Objects that roll up to the arm rest against it, not inside it.
-            SimArm::insert(&mut cell, urdf, &spec.world_from_base(), &HOME, 0.0)
+            let built =
+                crate::realism::ArmAsBuilt::new(spec.as_built.as_ref(), &scn.world.effects(), scn.world.as_built_seed);
+            SimArm::insert(&mut cell, urdf, &spec.world_from_base(), &HOME, 0.0, built.as_ref())
                 .expect("the URDF was checked on loading")
         });
         let bodies: Vec<_> =
@@ -236,13 +238,14 @@ mod tests {
     fn the_shipped_worlds_load() {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds");
         let mut n = 0;
-        for entry in std::fs::read_dir(dir).unwrap() {
+        let entries = std::fs::read_dir(&dir).unwrap().chain(std::fs::read_dir(dir.join("ideal")).unwrap());
+        for entry in entries {
             let path = entry.unwrap().path();
             if path.extension().is_some_and(|e| e == "toml") {
                 Scenario::load(&path).unwrap_or_else(|e| panic!("{e}"));
                 n += 1;
             }
         }
-        assert!(n >= 1);
+        assert!(n >= 8, "the shipped worlds and their ideal copies: {n}");
     }
 }

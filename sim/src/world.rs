@@ -410,7 +410,13 @@ impl WorldFile {
         if let Some(a) = self.robot.as_ref().and_then(|r| r.as_built.as_ref()) {
             within("robot.as_built.joint_offset_sigma_deg", a.joint_offset_sigma_deg.unwrap_or(0.1), 0.0, 10.0, "deg")?;
             within("robot.as_built.link_length_sigma_mm", a.link_length_sigma_mm.unwrap_or(0.2), 0.0, 50.0, "mm")?;
-            within("robot.as_built.encoder_counts_per_rev", a.encoder_counts_per_rev.unwrap_or(16384.0), 16.0, 1e9, "")?;
+            within(
+                "robot.as_built.encoder_counts_per_rev",
+                a.encoder_counts_per_rev.unwrap_or(16384.0),
+                16.0,
+                1e9,
+                "",
+            )?;
             within("robot.as_built.encoder_counts_per_m", a.encoder_counts_per_m.unwrap_or(1e5), 100.0, 1e12, "")?;
         }
         Ok(())

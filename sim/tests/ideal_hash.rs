@@ -1,6 +1,6 @@
 //! The `ideal` preset reproduces the renderer as it was before the realistic cell (commit
 //! 82a7054) bit for bit: every shipped world's stereo pair at its own seed (images, depth and
-//! id maps), drawn through [`sim::imaging::Imaging`] with `realism = "ideal"`, hashes to what
+//! id maps), drawn through [`sim::imaging::Imaging`] from its ideal copy (`worlds/ideal/`), hashes to what
 //! that renderer gave (the hashes below were printed by this test run on 82a7054), so every
 //! earlier figure can still be reproduced.
 
@@ -37,8 +37,8 @@ const BEFORE: [(&str, u64, u64); 4] = [
 fn ideal_renders_hash_as_before() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds");
     for (name, left, right) in BEFORE {
-        let mut scn = Scenario::load(&dir.join(format!("{name}.toml"))).unwrap();
-        scn.world.realism = Preset::Ideal;
+        let scn = Scenario::load(&dir.join(format!("ideal/{name}.toml"))).unwrap();
+        assert_eq!(scn.world.realism, Preset::Ideal);
         let scene = Scene::settle(&scn, scn.world.seed);
         let imaging = Imaging::new(&scn.world);
         let (l, r) = imaging.render_stereo(&scene.render_scene(&scn.library, &imaging), scn.world.seed);

@@ -3,7 +3,6 @@
 use super::output::emit;
 use clap::{Args, Subcommand};
 use marvin::truth::AskTruth;
-use sim::render::{Light, RenderScene, render_stereo};
 use sim::{Scenario, Scene};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -100,7 +99,7 @@ struct Setup {
 fn setup(world: &std::path::Path) -> anyhow::Result<Setup> {
     let scn = Scenario::load(world)?;
     let scene = Scene::settle(&scn, scn.world.seed);
-    let calib = sim::rig::calibration(&scn.world.cameras);
+    let calib = sim::imaging::Imaging::new(&scn.world).nominal;
     Ok(Setup { scn, scene, calib })
 }
 
@@ -195,24 +194,44 @@ pub fn run(target: BenchTarget) -> anyhow::Result<()> {
     }
 }
 
-/// `marvin bench render`.
+/// `marvin bench render`: the stereo pair as the world's preset draws it (`render`), as the
+/// ideal preset draws it (`render_ideal`), and the realistic preset's shadow maps alone
+/// (`shadow_maps`, part of `render`).
 fn render(args: &BenchArgs) -> anyhow::Result<()> {
     let s = setup(&args.world)?;
-    let light = Light::from(&s.scn.world.light);
-    let sigma = s.scn.world.render.noise_sigma;
-    let median = median_ms(args.runs as usize, || {
-        let rs = RenderScene::new(s.scene.world_meshes(&s.scn.library), &light);
-        std::hint::black_box(render_stereo(&rs, &s.calib, sigma, s.scn.world.seed));
+    let seed = s.scn.world.seed;
+    let timed = |world: &sim::WorldFile| {
+        let imaging = sim::imaging::Imaging::new(world);
+        median_ms(args.runs as usize, || {
+            let rs = s.scene.render_scene(&s.scn.library, &imaging);
+            std::hint::black_box(imaging.render_stereo(&rs, seed));
+        })
+    };
+    let mut ideal = s.scn.world.clone();
+    ideal.realism = sim::realism::Preset::Ideal;
+    ideal.effects = Default::default();
+    let imaging = sim::imaging::Imaging::new(&s.scn.world);
+    let rs = s.scene.render_scene(&s.scn.library, &imaging);
+    let corners = rs.corners();
+    let shadow_maps = median_ms(args.runs as usize, || {
+        std::hint::black_box(sim::lighting::Lighting::new(&imaging.lamps, imaging.light, &imaging.effects, &corners));
     });
-    let what = format!("stereo pair of {}, {} threads", args.world.display(), rayon::current_num_threads());
-    report(args, &[("render", median)], &what)
+    let results = [("render", timed(&s.scn.world)), ("render_ideal", timed(&ideal)), ("shadow_maps", shadow_maps)];
+    let what = format!(
+        "stereo pair of {} ({:?} preset), {} threads",
+        args.world.display(),
+        s.scn.world.realism,
+        rayon::current_num_threads()
+    );
+    report(args, &results, &what)
 }
 
 /// `marvin bench vision`: the front end's stages, then the matcher and the whole cycle.
 fn vision(args: &BenchArgs) -> anyhow::Result<()> {
     let s = setup(&args.world)?;
-    let rs = RenderScene::new(s.scene.world_meshes(&s.scn.library), &Light::from(&s.scn.world.light));
-    let (l, r) = render_stereo(&rs, &s.calib, s.scn.world.render.noise_sigma, s.scn.world.seed);
+    // The pair as the world's preset forms it; vision given the world file's calibration.
+    let imaging = sim::imaging::Imaging::new(&s.scn.world);
+    let (l, r) = imaging.render_stereo(&s.scene.render_scene(&s.scn.library, &imaging), s.scn.world.seed);
     let left = vision::GreyImage::new(l.width, l.height, l.image).expect("a rendered frame is whole");
     let right = vision::GreyImage::new(r.width, r.height, r.image).expect("a rendered frame is whole");
     let params = vision::CannyParams::default();

@@ -4,7 +4,6 @@ use super::output::emit;
 use clap::Subcommand;
 use marvin::eval::{ArmMask, DisparityStats, LineStats, disparity_stats, edgel_fates, line_stats};
 use marvin::truth::TruthScene;
-use sim::render::{Light, RenderScene, render_stereo};
 use sim::{Scenario, Scene};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -147,8 +146,10 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
         }
     };
     let scn = Scenario::load(&world)?;
-    let calib = sim::rig::calibration(&scn.world.cameras);
-    let light = Light::from(&scn.world.light);
+    let imaging = sim::imaging::Imaging::new(&scn.world);
+    let cams = marvin::truth::EvalCameras::of(&imaging);
+    // What vision is given: the world file's cameras (the truth only in the ideal preset).
+    let calib = cams.vision.clone();
     let (mut total, mut on_arm) = (DisparityStats::default(), DisparityStats::default());
     let mut lines = LineStats::default();
     let mut timings: BTreeMap<&'static str, Vec<f64>> = BTreeMap::new();
@@ -158,12 +159,7 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
         let s = seed + k;
         let (scene, settled) = super::output::settle(&scn, s);
         unsettled += usize::from(!settled);
-        let (l, r) = render_stereo(
-            &RenderScene::new(scene.world_meshes(&scn.library), &light),
-            &calib,
-            scn.world.render.noise_sigma,
-            s,
-        );
+        let (l, r) = imaging.render_stereo(&scene.render_scene(&scn.library, &imaging), s);
         let left = vision::GreyImage::new(l.width, l.height, l.image).expect("a rendered frame is whole");
         let right = vision::GreyImage::new(r.width, r.height, r.image).expect("a rendered frame is whole");
         let params = canny_params(deblur);
@@ -174,9 +170,9 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
         };
         let truth = TruthScene::new(scene.world_meshes(&scn.library).map(|(_, m)| m));
         let arm = ArmMask::from_ids(l.width, l.height, &l.ids);
-        let (stats, arm_stats) = disparity_stats(&fe, &truth, &calib, &arm);
-        let line = line_stats(&fe, &scene, &scn.library, &calib, &l.depth, &arm);
-        for (fate, n) in edgel_fates(&fe, &truth, &calib, &arm) {
+        let (stats, arm_stats) = disparity_stats(&fe, &truth, &cams, &arm);
+        let line = line_stats(&fe, &scene, &scn.library, &cams, &l.depth, &arm);
+        for (fate, n) in edgel_fates(&fe, &truth, &cams, &arm) {
             *fates.entry(fate).or_insert(0) += n;
         }
         eprintln!(
@@ -205,6 +201,7 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
         .collect();
     let report = serde_json::json!({
         "world": scn.world.name,
+        "realism": imaging.preset,
         "seeds": [seed, seed + scenes - 1],
         "scenes": scenes,
         "disparity_within_0_5px": total.within_fraction(),
@@ -241,6 +238,8 @@ pub struct Pipeline {
     pub front_end: vision::front_end::FrontEnd,
     /// Whether the scene came to rest (a warning was printed if not).
     pub settled: bool,
+    /// The calibration vision was given, and the true cameras.
+    pub cams: marvin::truth::EvalCameras,
 }
 
 /// The front end's Canny parameters, deblurred or not.
@@ -248,15 +247,22 @@ pub fn canny_params(deblur: bool) -> vision::CannyParams {
     vision::CannyParams { deblur, ..vision::CannyParams::default() }
 }
 
-pub fn run_pipeline(scn: &Scenario, seed: u64, canny: &vision::CannyParams) -> Pipeline {
-    let calib = sim::rig::calibration(&scn.world.cameras);
+/// Settles the scene of `seed`, renders it as `imaging` has the cell, and runs the sliced
+/// front end on it with the world file's (nominal) calibration.
+pub fn run_pipeline(
+    scn: &Scenario,
+    imaging: &sim::imaging::Imaging,
+    seed: u64,
+    canny: &vision::CannyParams,
+) -> Pipeline {
+    let cams = marvin::truth::EvalCameras::of(imaging);
+    let calib = &cams.vision;
     let (scene, settled) = super::output::settle(scn, seed);
-    let rs = RenderScene::new(scene.world_meshes(&scn.library), &Light::from(&scn.world.light));
-    let (l, r) = render_stereo(&rs, &calib, scn.world.render.noise_sigma, seed);
+    let (l, r) = imaging.render_stereo(&scene.render_scene(&scn.library, imaging), seed);
     let left = vision::GreyImage::new(l.width, l.height, l.image.clone()).expect("a rendered frame is whole");
     let right = vision::GreyImage::new(r.width, r.height, r.image.clone()).expect("a rendered frame is whole");
-    let front_end = vision::front_end::slices::run_sliced(&left, &right, &calib, canny, 8);
-    Pipeline { scene, left: l, right: r, front_end, settled }
+    let front_end = vision::front_end::slices::run_sliced(&left, &right, calib, canny, 8);
+    Pipeline { scene, left: l, right: r, front_end, settled, cams }
 }
 
 /// The library's models as the matcher sees them (the calibration flag is not sought).
@@ -278,7 +284,8 @@ fn run_locate(
 ) -> anyhow::Result<()> {
     use marvin::eval::{LocateStats, locate_stats, quantile, symmetries};
     let scn = Scenario::load(world)?;
-    let calib = sim::rig::calibration(&scn.world.cameras);
+    let imaging = sim::imaging::Imaging::new(&scn.world);
+    let calib = imaging.nominal.clone();
     let models = matcher_models(&scn.library, None);
     let symmetry: BTreeMap<String, Vec<nalgebra::Isometry3<f64>>> =
         scn.library.models.values().map(|m| (m.name.clone(), symmetries(m))).collect();
@@ -289,7 +296,7 @@ fn run_locate(
     let (mut false_reports, mut missed) = (Vec::new(), Vec::new());
     for k in 0..scenes {
         let s = seed + k;
-        let p = run_pipeline(&scn, s, canny);
+        let p = run_pipeline(&scn, &imaging, s, canny);
         unsettled += usize::from(!p.settled);
         let lines: Vec<vision::matcher::Seg> =
             p.front_end.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
@@ -297,7 +304,7 @@ fn run_locate(
         let evidence = vision::matcher::verify::ImageEvidence::of_pair(&calib, &p.front_end);
         let located = vision::matcher::locate_all(&models, &lines, &params, Some(&evidence));
         match_ms.push(clock.elapsed().as_secs_f64() * 1e3);
-        let stats = locate_stats(&located, &p.scene, &scn.library, &calib, &p.left.depth, &symmetry);
+        let stats = locate_stats(&located, &p.scene, &scn.library, &p.cams, &p.left.depth, &symmetry);
         for f in &stats.false_reports {
             false_reports.push(serde_json::json!({ "seed": s, "report": f }));
         }
@@ -316,6 +323,7 @@ fn run_locate(
     }
     let report = serde_json::json!({
         "world": scn.world.name,
+        "realism": imaging.preset,
         "seeds": [seed, seed + scenes - 1],
         "scenes": scenes,
         "located_fraction": total.located as f64 / total.eligible.max(1) as f64,

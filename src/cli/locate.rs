@@ -32,8 +32,9 @@ pub fn run(
         }
     }
     let seed = seed.unwrap_or(scn.world.seed);
-    let calib = sim::rig::calibration(&scn.world.cameras);
-    let p = run_pipeline(&scn, seed, canny);
+    let imaging = sim::imaging::Imaging::new(&scn.world);
+    let p = run_pipeline(&scn, &imaging, seed, canny);
+    let calib = p.cams.vision.clone();
     let lines: Vec<Seg> = p.front_end.lines3d.iter().map(|l| Seg::new(l.start(), l.end())).collect();
     let sought = matcher_models(&scn.library, models.as_deref());
     let evidence = vision::matcher::verify::ImageEvidence::of_pair(&calib, &p.front_end);
@@ -90,7 +91,12 @@ pub fn run(
                 "model": name,
                 // The id of scene.json and `marvin pick --object`.
                 "object": p.scene.objects[i].id,
-                "visible_fraction": visible_fraction(&scn.library.models[name], pose, &calib.left, &p.left.depth),
+                "visible_fraction": visible_fraction(
+                    &scn.library.models[name],
+                    &(p.cams.true_left.pinhole.cam_from_world() * p.scene.objects[i].world_from_model),
+                    &p.cams.true_left,
+                    &p.left.depth
+                ),
                 "support_fraction_at_truth": support,
                 "supported_lines_at_truth": lines_seen,
                 "image_support_at_truth": vision::matcher::verify::image_support(model, pose, &evidence),

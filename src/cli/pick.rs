@@ -86,7 +86,9 @@ fn record_cell(r: &mut Recording, cell: &PickCell, step: usize) -> anyhow::Resul
     r.at(step, cell.simulated_s);
     let scn = cell.scn;
     let world_from_base = cell.work.world_from_base;
-    let world_from_cam = sim::rig::calibration(&scn.world.cameras).left.world_from_cam;
+    // The true left camera (as built), where the truth is seen from.
+    let rig = sim::rig::as_built(&scn.world.cameras, &scn.world.effects(), scn.world.as_built_seed);
+    let world_from_cam = rig.left.pinhole.world_from_cam;
     let truth = TruthReply {
         objects: cell.truth_objects(),
         tool_in_gripper: None,

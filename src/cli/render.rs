@@ -4,7 +4,7 @@ use anyhow::Context;
 use image::{ImageBuffer, Luma};
 use sim::Scenario;
 use sim::record::{DEPTH_UNIT_M, SceneRecord};
-use sim::render::{Frame, Light, RenderScene, render_stereo};
+use sim::render::Frame;
 use std::path::Path;
 use std::time::Instant;
 
@@ -19,16 +19,15 @@ pub fn run(world: &Path, seed: Option<u64>, out: &Path) -> anyhow::Result<()> {
         scene.settle.simulated_s,
         t0.elapsed().as_secs_f64(),
     );
-    let calib = sim::rig::calibration(&scn.world.cameras);
+    let imaging = sim::imaging::Imaging::new(&scn.world);
     let t1 = Instant::now();
-    let rs = RenderScene::new(scene.world_meshes(&scn.library), &Light::from(&scn.world.light));
-    let (left, right) = render_stereo(&rs, &calib, scn.world.render.noise_sigma, seed);
-    eprintln!("rendered the stereo pair in {:.1} ms", t1.elapsed().as_secs_f64() * 1e3);
+    let (left, right) = imaging.render_stereo(&scene.render_scene(&scn.library, &imaging), seed);
+    eprintln!("rendered the stereo pair ({:?} preset) in {:.1} ms", imaging.preset, t1.elapsed().as_secs_f64() * 1e3);
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     for (name, frame) in [("left", &left), ("right", &right)] {
         write_frame(frame, name, out)?;
     }
-    let record = SceneRecord::new(&scn, &scene, &calib);
+    let record = SceneRecord::new(&scn, &scene, &imaging);
     let path = out.join("scene.json");
     std::fs::write(&path, serde_json::to_string_pretty(&record)?)
         .with_context(|| format!("writing {}", path.display()))?;

@@ -25,7 +25,6 @@ use robot::planner::{Attached, CollisionWorld, Obstacle, PlannerParams, Problem}
 use robot::trajectory::{Limits, Trajectory};
 use serde_json::Value;
 use sim::physics::collision_shape;
-use sim::render::{Light, RenderScene, render_stereo};
 use sim::render::{TOOL_ID, arm_link_id};
 use sim::{Scenario, Scene};
 use std::collections::BTreeMap;
@@ -106,8 +105,9 @@ struct SimCell<'a> {
     scn: &'a Scenario,
     work: &'a Workcell,
     pick: PickCell<'a>,
-    calib: StereoCalibration,
-    light: Light,
+    /// How the cell's cameras form images (the world's realism preset); its `nominal`
+    /// calibration is what `capture` tells the client, its `rig` the truth.
+    imaging: sim::imaging::Imaging,
     cam_from_base: Option<Isometry3<f64>>,
     expose_truth: bool,
     seed: u64,
@@ -175,8 +175,7 @@ impl<'a> SimCell<'a> {
             scn,
             work,
             pick,
-            calib: sim::rig::calibration(&scn.world.cameras),
-            light: Light::from(&scn.world.light),
+            imaging: sim::imaging::Imaging::new(&scn.world),
             cam_from_base: config.cam_from_base,
             expose_truth: config.expose_truth,
             seed,
@@ -270,29 +269,37 @@ impl<'a> SimCell<'a> {
 
     /// The stereo pair as the cameras see the cell now.
     fn capture(&mut self) -> Result<CaptureReply, WireError> {
-        let statics = sim::scene::static_boxes(&self.scn.world).into_iter().map(|b| (0, b.mesh()));
-        let objects: Vec<(u32, mesh::TriMesh)> = self
+        let im = &self.imaging;
+        let statics =
+            sim::scene::static_boxes(&self.scn.world).into_iter().map(|b| (0, b.mesh(), im.static_finish(&b)));
+        let objects: Vec<_> = self
             .pick
             .objects
             .iter()
             .map(|(id, model, body)| {
-                (*id, self.scn.library.models[model].mesh.transformed(&self.pick.cell.pose(*body)))
+                let m = &self.scn.library.models[model];
+                (*id, m.mesh.transformed(&self.pick.cell.pose(*body)), im.object_finish(m, *id, self.seed))
             })
             .collect();
-        let arm =
-            self.pick.arm.link_meshes(&self.pick.cell).into_iter().enumerate().map(|(k, (_, m))| (arm_link_id(k), m));
+        let arm = self
+            .pick
+            .arm
+            .link_meshes(&self.pick.cell)
+            .into_iter()
+            .enumerate()
+            .map(|(k, (_, m))| (arm_link_id(k), m, sim::imaging::ARM_FINISH));
         let tool = self.tool.as_ref().map(|t| {
             let model = &self.scn.library.models[&t.name];
-            (TOOL_ID, model.mesh.transformed(&self.pick.cell.pose(t.body)))
+            (TOOL_ID, model.mesh.transformed(&self.pick.cell.pose(t.body)), im.object_finish(model, TOOL_ID, 0))
         });
-        let rs = RenderScene::new(statics.chain(objects).chain(arm).chain(tool), &self.light);
+        let rs = im.scene(statics.chain(objects).chain(arm).chain(tool));
         self.captures += 1;
         let noise_seed = self.seed.wrapping_mul(1_000_003).wrapping_add(self.captures);
-        let (left, right) = render_stereo(&rs, &self.calib, self.scn.world.render.noise_sigma, noise_seed);
+        let (left, right) = im.render_stereo(&rs, noise_seed);
         Ok(CaptureReply {
             left_png_b64: png_b64(&left.image, left.width, left.height)?,
             right_png_b64: png_b64(&right.image, right.width, right.height)?,
-            calibration: rig_calibration(&self.calib),
+            calibration: rig_calibration(&im.nominal),
             sim_time_s: self.pick.simulated_s,
         })
     }
@@ -656,7 +663,8 @@ impl<'a> SimCell<'a> {
     /// The simulation's truth, for evaluation only.
     fn truth(&self) -> TruthReply {
         let objects = self.pick.truth_objects();
-        let world_from_cam = self.calib.left.world_from_cam;
+        // The true (as-built) left camera: what the hand-eye calibration should find.
+        let world_from_cam = self.imaging.rig.left.pinhole.world_from_cam;
         let world_from_gripper = self.pick.arm.world_from_gripper(&self.pick.cell);
         TruthReply {
             objects,
