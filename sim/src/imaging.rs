@@ -35,6 +35,8 @@ pub struct CameraImaging {
     virt: PinholeCamera,
     /// Per pixel: the virtual pinhole's coordinates it takes its light from.
     source: Vec<(f32, f32)>,
+    /// The real image's width.
+    width: usize,
     vignette: Vec<f32>,
     pattern: FixedPattern,
 }
@@ -54,7 +56,7 @@ impl CameraImaging {
             )
             .collect();
         let pattern = FixedPattern::new(&cam.sensor, w * h, cam.pattern_seed);
-        CameraImaging { virt, source, vignette, pattern }
+        CameraImaging { virt, source, width: w, vignette, pattern }
     }
 }
 
@@ -137,6 +139,15 @@ impl Imaging {
             texture: 0.0,
             albedo_scale: scale as f32,
         }
+    }
+
+    /// Where pixel `(u, v)` of the left (`right = false`) or right realistic camera takes its
+    /// light from: the virtual pinhole the scene is drawn through, and the point of its image
+    /// (`None` in the ideal preset, which draws through the camera itself).
+    pub fn light_source(&self, right: bool, u: usize, v: usize) -> Option<(&PinholeCamera, (f64, f64))> {
+        let cam = &self.cameras.as_ref()?[usize::from(right)];
+        let (x, y) = cam.source[v * cam.width + u];
+        Some((&cam.virt, (x as f64, y as f64)))
     }
 
     /// Shades meshes for drawing.

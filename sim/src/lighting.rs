@@ -231,24 +231,27 @@ fn lamp_irradiance(lamp: &Lamp, point: &Point3<f64>, n: &Vector3<f64>) -> f64 {
         // cos / d² = (n . to) / d³
         (p.intensity * facing / (d2 * d), lit)
     };
-    let (mut total, mut open_total) = (0.0, 0.0);
+    let mut total = 0.0;
     let (mut all_lit, mut all_dark) = (true, true);
     for p in lamp.points.iter().step_by(2) {
         let (e, lit) = contribution(p);
         total += e * lit;
-        open_total += e;
         all_lit &= lit >= 1.0;
         all_dark &= lit <= 0.0;
     }
-    if all_lit || all_dark {
-        // The skipped points' own cosines and distances differ by a few percent: scale the
-        // tested points' light to the whole lamp.
-        let scale = lamp.points.len() as f64 / lamp.points.len().div_ceil(2) as f64;
-        return if all_dark { 0.0 } else { open_total * scale };
+    if all_dark {
+        return 0.0;
     }
     for p in lamp.points.iter().skip(1).step_by(2) {
-        let (e, lit) = contribution(p);
-        total += e * lit;
+        let to = p.position - point;
+        let facing = n.dot(&to);
+        if facing <= 0.0 {
+            continue;
+        }
+        let d2 = to.norm_squared();
+        // Wholly lit by the points tested: the others' light is taken as reaching it too.
+        let lit = if all_lit { 1.0 } else { p.shadow.as_ref().map_or(1.0, |m| m.lit(point, n, d2.sqrt())) };
+        total += p.intensity * facing / (d2 * d2.sqrt()) * lit;
     }
     total
 }
