@@ -17,7 +17,7 @@
 
 use crate::realism::{Effects, Finish, LampSpec};
 use crate::render::Light;
-use nalgebra::{Isometry3, Matrix3, Point3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 
 /// Points each lamp is sampled at (shadows have this many steps of penumbra, smoothed by the
@@ -32,9 +32,12 @@ const SHADOW_BIAS_M: f32 = 1.5e-3;
 
 /// A depth image seen from one point of a lamp.
 struct ShadowMap {
-    /// `view_from_world` as a matrix and a shift (cheaper to apply than a quaternion).
-    rotation: Matrix3<f64>,
-    shift: Vector3<f64>,
+    /// `view_from_world` as a matrix and a shift (cheaper to apply than a quaternion), with
+    /// the focal length and the centre folded in: `(fx, fy, z) = m p + t` gives the texel
+    /// `(fx / z + c, fy / z + c)`. Single precision: a texel is 3 mm, a float's step at 2 m
+    /// a fraction of a micrometre.
+    m: [[f32; 3]; 3],
+    t: [f32; 3],
     focal: f64,
     /// Inverse depth along the view axis, 1/metres, of the nearest surface; 0 where nothing was
     /// drawn.
@@ -292,9 +295,13 @@ impl ShadowMap {
         let world_from_view = Isometry3::from_parts(from.coords.into(), rot);
         let view_from_world = world_from_view.inverse();
         let focal = (MAP_SIZE as f64 / 2.0) / MAP_HALF_FOV.tan();
-        let rotation = *view_from_world.rotation.to_rotation_matrix().matrix();
-        let shift = view_from_world.translation.vector;
-        let mut map = ShadowMap { rotation, shift, focal, inv_depth: vec![0.0; MAP_SIZE * MAP_SIZE] };
+        let r = *view_from_world.rotation.to_rotation_matrix().matrix();
+        let s = view_from_world.translation.vector;
+        let row =
+            |i: usize, scale: f64| [(r[(i, 0)] * scale) as f32, (r[(i, 1)] * scale) as f32, (r[(i, 2)] * scale) as f32];
+        let m = [row(0, focal), row(1, focal), row(2, 1.0)];
+        let t = [(s.x * focal) as f32, (s.y * focal) as f32, s.z as f32];
+        let mut map = ShadowMap { m, t, focal, inv_depth: vec![0.0; MAP_SIZE * MAP_SIZE] };
         for t in triangles {
             map.draw(&t.map(|p| view_from_world * p));
         }
@@ -375,25 +382,28 @@ impl ShadowMap {
     /// from the lamp point): the four nearest texels' tests, weighted bilinearly. The point is
     /// first moved a texel and a half along its normal, so a surface does not shadow itself.
     fn lit(&self, p: &Point3<f64>, n: &Vector3<f64>, d: f64) -> f64 {
-        let texel = d / self.focal;
-        let q = self.rotation * (p.coords + n * (1.5 * texel)) + self.shift;
-        if q.z <= 0.0 {
+        let off = 1.5 * d / self.focal;
+        let p = [(p.x + n.x * off) as f32, (p.y + n.y * off) as f32, (p.z + n.z * off) as f32];
+        let dot = |r: &[f32; 3], t: f32| r[0] * p[0] + r[1] * p[1] + r[2] * p[2] + t;
+        let (fx, fy, z) = (dot(&self.m[0], self.t[0]), dot(&self.m[1], self.t[1]), dot(&self.m[2], self.t[2]));
+        if z <= 0.0 {
             return 1.0;
         }
-        let (r, c) = (1.0 / q.z, (MAP_SIZE as f64 - 1.0) / 2.0);
-        let (x, y) = (self.focal * q.x * r + c, self.focal * q.y * r + c);
-        if !(x >= 0.0 && y >= 0.0 && x < (MAP_SIZE - 1) as f64 && y < (MAP_SIZE - 1) as f64) {
+        let (r, c) = (1.0 / z, (MAP_SIZE as f32 - 1.0) / 2.0);
+        let (x, y) = (fx * r + c, fy * r + c);
+        if !(x >= 0.0 && y >= 0.0 && x < (MAP_SIZE - 1) as f32 && y < (MAP_SIZE - 1) as f32) {
             return 1.0; // outside the map: nothing there to cast a shadow
         }
         let (i, j) = (x as usize, y as usize);
-        let (ax, ay) = (x - i as f64, y - j as f64);
+        let (ax, ay) = (x - i as f32, y - j as f32);
         // Lit where the point (pulled back by the bias) is no deeper than the nearest surface
         // drawn: `1/z_map <= 1/z_point`, with the division multiplied out.
-        let depth = q.z as f32 - SHADOW_BIAS_M;
-        let at = |k: usize| -> f64 { if self.inv_depth[k] * depth <= 1.0 { 1.0 } else { 0.0 } };
+        let depth = z - SHADOW_BIAS_M;
         let k = j * MAP_SIZE + i;
-        (1.0 - ay) * ((1.0 - ax) * at(k) + ax * at(k + 1))
-            + ay * ((1.0 - ax) * at(k + MAP_SIZE) + ax * at(k + MAP_SIZE + 1))
+        let near = &self.inv_depth[k..k + MAP_SIZE + 2];
+        let at = |o: usize| -> f32 { if near[o] * depth <= 1.0 { 1.0 } else { 0.0 } };
+        ((1.0 - ay) * ((1.0 - ax) * at(0) + ax * at(1)) + ay * ((1.0 - ax) * at(MAP_SIZE) + ax * at(MAP_SIZE + 1)))
+            as f64
     }
 }
 
