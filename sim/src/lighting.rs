@@ -16,7 +16,7 @@
 //! Written by hand: the shadow maps reuse nothing of a GPU, and the shading is a few lines.
 
 use crate::realism::{Effects, Finish, LampSpec};
-use crate::render::Light;
+use crate::render::{Light, clip_near};
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 
@@ -405,22 +405,6 @@ impl ShadowMap {
         ((1.0 - ay) * ((1.0 - ax) * at(0) + ax * at(1)) + ay * ((1.0 - ax) * at(MAP_SIZE) + ax * at(MAP_SIZE + 1)))
             as f64
     }
-}
-
-/// Clips a triangle to `z >= near` (Sutherland-Hodgman against one plane).
-fn clip_near(tri: &[Point3<f64>; 3], near: f64) -> Vec<Point3<f64>> {
-    let mut out = Vec::with_capacity(4);
-    for i in 0..3 {
-        let (a, b) = (tri[i], tri[(i + 1) % 3]);
-        if a.z >= near {
-            out.push(a);
-        }
-        if (a.z >= near) != (b.z >= near) {
-            let s = (near - a.z) / (b.z - a.z);
-            out.push(a + (b - a) * s);
-        }
-    }
-    out
 }
 
 /// The table's faint texture: smooth value noise in the table's plane, in -1..1, at three

@@ -320,7 +320,7 @@ fn project(scene: &RenderScene, cam: &PinholeCamera) -> Vec<ScreenTriangle> {
         if corners.iter().all(|p| p.z < NEAR) {
             continue;
         }
-        let polygon = clip_near(&corners);
+        let polygon = clip_near(&corners, NEAR);
         let pixels: Vec<[f64; 3]> =
             polygon.iter().map(|p| [cam.fx * p.x / p.z + cam.cx, cam.fy * p.y / p.z + cam.cy, 1.0 / p.z]).collect();
         for k in 1..pixels.len().saturating_sub(1) {
@@ -332,16 +332,16 @@ fn project(scene: &RenderScene, cam: &PinholeCamera) -> Vec<ScreenTriangle> {
     out
 }
 
-/// Clips a camera-space triangle to `z >= NEAR` (Sutherland-Hodgman against one plane).
-fn clip_near(tri: &[Point3<f64>; 3]) -> Vec<Point3<f64>> {
+/// Clips a camera-space triangle to `z >= near` (Sutherland-Hodgman against one plane).
+pub(crate) fn clip_near(tri: &[Point3<f64>; 3], near: f64) -> Vec<Point3<f64>> {
     let mut out = Vec::with_capacity(4);
     for i in 0..3 {
         let (a, b) = (tri[i], tri[(i + 1) % 3]);
-        if a.z >= NEAR {
+        if a.z >= near {
             out.push(a);
         }
-        if (a.z >= NEAR) != (b.z >= NEAR) {
-            let s = (NEAR - a.z) / (b.z - a.z);
+        if (a.z >= near) != (b.z >= near) {
+            let s = (near - a.z) / (b.z - a.z);
             out.push(a + (b - a) * s);
         }
     }
