@@ -35,10 +35,38 @@ pub struct CameraImaging {
     virt: PinholeCamera,
     /// Per pixel: the virtual pinhole's coordinates it takes its light from.
     source: Vec<(f32, f32)>,
+    /// Per pixel: that point's bilinear look-up in the virtual image, worked out once.
+    taps: Vec<Tap>,
     /// The real image's width.
     width: usize,
     vignette: Vec<f32>,
     pattern: FixedPattern,
+}
+
+/// A bilinear look-up: the top-left pixel of the four, the weights of the right and lower ones,
+/// and the pixel nearest (for the depth and id maps).
+#[derive(Debug, Clone, Copy)]
+struct Tap {
+    top_left: u32,
+    ax: f32,
+    ay: f32,
+    nearest: u32,
+}
+
+impl Tap {
+    fn new((x, y): (f32, f32), w: usize, h: usize) -> Tap {
+        let (x, y) = (x.clamp(0.0, (w - 1) as f32 - 1e-3), y.clamp(0.0, (h - 1) as f32 - 1e-3));
+        let (i, j) = (x as usize, y as usize);
+        let nearest = (y.round() as usize) * w + x.round() as usize;
+        Tap { top_left: (j * w + i) as u32, ax: x - i as f32, ay: y - j as f32, nearest: nearest as u32 }
+    }
+
+    fn sample(&self, image: &[f32], w: usize) -> f32 {
+        let k = self.top_left as usize;
+        let (ax, ay) = (self.ax, self.ay);
+        (1.0 - ay) * ((1.0 - ax) * image[k] + ax * image[k + 1])
+            + ay * ((1.0 - ax) * image[k + w] + ax * image[k + w + 1])
+    }
 }
 
 impl CameraImaging {
@@ -47,7 +75,7 @@ impl CameraImaging {
         let (w, h) = (cam.pinhole.width as usize, cam.pinhole.height as usize);
         let ray: Vec<(f64, f64)> =
             (0..w * h).into_par_iter().map(|i| optics::ideal_normalised(cam, (i % w) as f64, (i / w) as f64)).collect();
-        let source =
+        let source: Vec<(f32, f32)> =
             ray.iter().map(|&(x, y)| ((virt.fx * x + virt.cx) as f32, (virt.fy * y + virt.cy) as f32)).collect();
         let vignette = ray
             .iter()
@@ -56,7 +84,9 @@ impl CameraImaging {
             )
             .collect();
         let pattern = FixedPattern::new(&cam.sensor, w * h, cam.pattern_seed);
-        CameraImaging { virt, source, width: w, vignette, pattern }
+        let (vw, vh) = (virt.width as usize, virt.height as usize);
+        let taps = source.iter().map(|&s| Tap::new(s, vw, vh)).collect();
+        CameraImaging { virt, source, taps, width: w, vignette, pattern }
     }
 }
 
@@ -193,15 +223,13 @@ impl Imaging {
             .enumerate()
             .for_each(|(v, (rad, (depth, ids)))| {
                 for u in 0..w {
-                    let (vx, vy) = shared.source[v * w + u];
-                    let (vx, vy) = (vx as f64, vy as f64);
-                    rad[u] = optics::bilinear(&seen.radiance, seen.width, seen.height, vx, vy);
-                    let nearest = (vy.round() as usize).min(seen.height - 1) * seen.width
-                        + (vx.round() as usize).min(seen.width - 1);
-                    let t = seen.centre[nearest];
+                    let tap = &shared.taps[v * w + u];
+                    rad[u] = tap.sample(&seen.radiance, seen.width);
+                    let t = seen.centre[tap.nearest as usize];
                     if t != u32::MAX {
+                        let (vx, vy) = shared.source[v * w + u];
                         let [p, q, r] = seen.inv_z[t as usize];
-                        let z = 1.0 / (p * vx + q * vy + r);
+                        let z = 1.0 / (p * vx as f64 + q * vy as f64 + r);
                         if z.is_finite() && z > 0.0 {
                             depth[u] = z as f32;
                             ids[u] = seen.ids[t as usize];

@@ -56,6 +56,121 @@ struct LampPoint {
 struct Lamp {
     centre: Point3<f64>,
     points: Vec<LampPoint>,
+    /// The points' positions and intensities side by side, for [`Lamp::light`].
+    xyzi: [[f32; LAMP_POINTS]; 4],
+    /// Its points' shadows on the table's plane, when shadows are on and the scene has it.
+    on_table: Option<TableShadows>,
+}
+
+/// The shadows a lamp's points cast on the table's plane (`z = 0`, the world's table top,
+/// where most of what the cameras see lies): every triangle above the plane projected onto it
+/// from each point -- exactly, as a central projection onto a plane maps a triangle to a
+/// triangle -- and drawn into a grid of [`TABLE_CELL_M`] cells, one bit a point. A point of the
+/// plane looks its shadows up here (four cells, bilinearly) instead of in eight shadow maps.
+struct TableShadows {
+    x0: f64,
+    y0: f64,
+    w: usize,
+    h: usize,
+    /// Bit `k` of a cell: lamp point `k`'s light does not reach the cell's centre.
+    bits: Vec<u8>,
+}
+
+/// Cells of the table's shadow grid, metres.
+const TABLE_CELL_M: f64 = 0.002;
+
+/// How near the table's plane a point must be to be on it, metres.
+const ON_TABLE_M: f64 = 1e-5;
+
+impl TableShadows {
+    /// The shadows on the plane within `[lo, hi]` (its receivers' extent) of `occluders`.
+    fn new(points: &[LampPoint], occluders: &[[Point3<f64>; 3]], lo: [f64; 2], hi: [f64; 2]) -> TableShadows {
+        let (w, h) = (
+            ((hi[0] - lo[0]) / TABLE_CELL_M).ceil() as usize + 1,
+            ((hi[1] - lo[1]) / TABLE_CELL_M).ceil() as usize + 1,
+        );
+        let mut shadows = TableShadows { x0: lo[0], y0: lo[1], w, h, bits: vec![0; w * h] };
+        for (k, p) in points.iter().enumerate() {
+            let s = p.position;
+            for t in occluders {
+                if t.iter().all(|c| c.z <= ON_TABLE_M) {
+                    continue; // on or under the plane: no shadow on it from above
+                }
+                // The part below the lamp point (what is above it lights nothing under it),
+                // projected from the point onto z = 0.
+                let below: Vec<Point3<f64>> = clip_near(&t.map(|c| Point3::new(c.x, c.y, s.z - 1e-3 - c.z)), 0.0)
+                    .into_iter()
+                    .map(|c| Point3::new(c.x, c.y, s.z - 1e-3 - c.z))
+                    .collect();
+                let cast: Vec<[f64; 2]> = below
+                    .iter()
+                    .map(|c| {
+                        let f = s.z / (s.z - c.z);
+                        [
+                            (s.x + (c.x - s.x) * f - shadows.x0) / TABLE_CELL_M,
+                            (s.y + (c.y - s.y) * f - shadows.y0) / TABLE_CELL_M,
+                        ]
+                    })
+                    .collect();
+                for j in 1..cast.len().saturating_sub(1) {
+                    shadows.fill([cast[0], cast[j], cast[j + 1]], 1 << k);
+                }
+            }
+        }
+        shadows
+    }
+
+    /// Sets `bit` in every cell whose centre lies in the triangle (in cell units, cell `i`'s
+    /// centre at `i + 0.5`).
+    fn fill(&mut self, v: [[f64; 2]; 3], bit: u8) {
+        let area = (v[1][0] - v[0][0]) * (v[2][1] - v[0][1]) - (v[2][0] - v[0][0]) * (v[1][1] - v[0][1]);
+        if area.abs() < 1e-12 {
+            return;
+        }
+        let edges = [0, 1, 2].map(|i| {
+            let (p, q) = (v[i], v[(i + 1) % 3]);
+            let (a, b) = (-(q[1] - p[1]) * area.signum(), (q[0] - p[0]) * area.signum());
+            [a, b, -(a * p[0] + b * p[1])]
+        });
+        let top = v.iter().map(|c| c[1]).fold(f64::MAX, f64::min) - 0.5;
+        let bottom = v.iter().map(|c| c[1]).fold(f64::MIN, f64::max) - 0.5;
+        let (y0, y1) = (top.ceil().max(0.0) as i64, bottom.floor().min(self.h as f64 - 1.0) as i64);
+        let last = (self.w - 1) as f64;
+        for y in y0..=y1 {
+            // The run of cell centres inside all three edges along this row.
+            let cy = y as f64 + 0.5;
+            let (mut lo, mut hi) = (0.0f64, last);
+            for [a, b, c] in edges {
+                let rest = b * cy + c;
+                if a > 0.0 {
+                    lo = lo.max((-rest / a - 0.5).ceil());
+                } else if a < 0.0 {
+                    hi = hi.min((-rest / a - 0.5).floor());
+                } else if rest < 0.0 {
+                    hi = -1.0;
+                }
+            }
+            if lo <= hi {
+                let row = &mut self.bits[y as usize * self.w..][lo as usize..=hi as usize];
+                row.iter_mut().for_each(|cell| *cell |= bit);
+            }
+        }
+    }
+
+    /// Per lamp point, the fraction (0-1) of its light that reaches `(x, y)` on the plane.
+    fn lit(&self, x: f64, y: f64) -> Option<[f64; LAMP_POINTS]> {
+        let (gx, gy) = ((x - self.x0) / TABLE_CELL_M - 0.5, (y - self.y0) / TABLE_CELL_M - 0.5);
+        if !(gx >= 0.0 && gy >= 0.0 && gx < (self.w - 1) as f64 && gy < (self.h - 1) as f64) {
+            return None;
+        }
+        let (i, j) = (gx as usize, gy as usize);
+        let (ax, ay) = (gx - i as f64, gy - j as f64);
+        let k = j * self.w + i;
+        let cells = [(self.bits[k], (1.0 - ax) * (1.0 - ay)), (self.bits[k + 1], ax * (1.0 - ay))];
+        let cells =
+            [cells[0], cells[1], (self.bits[k + self.w], (1.0 - ax) * ay), (self.bits[k + self.w + 1], ax * ay)];
+        Some(std::array::from_fn(|b| cells.iter().map(|(bits, wt)| if bits & (1 << b) == 0 { *wt } else { 0.0 }).sum()))
+    }
 }
 
 /// The light of a realistic scene, ready to shade any surface point.
@@ -136,15 +251,26 @@ impl Lighting {
             for lamp in lamps {
                 let centre = lamp.position();
                 let intensity = lamp.irradiance * centre.coords.norm_squared() / LAMP_POINTS as f64;
-                let points = disc_points(centre, lamp.radius_m)
+                let points: Vec<LampPoint> = disc_points(centre, lamp.radius_m)
                     .into_iter()
                     .map(|position| LampPoint { position, intensity, shadow: None })
                     .collect();
-                built.push(Lamp { centre, points });
+                let xyzi = [0, 1, 2, 3].map(|c| {
+                    std::array::from_fn(|k| {
+                        let p: &LampPoint = &points[k];
+                        (if c < 3 { p.position[c] } else { p.intensity }) as f32
+                    })
+                });
+                built.push(Lamp { centre, points, xyzi, on_table: None });
             }
             if effects.shadows {
                 let points: Vec<&mut LampPoint> = built.iter_mut().flat_map(|l| l.points.iter_mut()).collect();
                 points.into_par_iter().for_each(|p| p.shadow = Some(ShadowMap::new(p.position, occluders)));
+                if let Some((lo, hi)) = table_extent(occluders) {
+                    built
+                        .par_iter_mut()
+                        .for_each(|l| l.on_table = Some(TableShadows::new(&l.points, occluders, lo, hi)));
+                }
             }
         }
         Lighting {
@@ -184,7 +310,7 @@ impl Lighting {
         let sky = self.sky * 0.5 * (1.0 + n.z);
         let (mut diffuse, mut gloss) = (0.0, 0.0);
         for lamp in &self.lamps {
-            let e = lamp_irradiance(lamp, &s.point, &n);
+            let e = lamp_irradiance(lamp, &s.point, &n).0;
             diffuse += e;
             if spec_frac > 0.0 && e > 0.0 {
                 // The highlight's shape from the lamp's centre; its strength from the light
@@ -200,13 +326,10 @@ impl Lighting {
     /// what a test compares a point in shadow with.
     pub fn lamp_irradiance(&self, point: &Point3<f64>, n: &Vector3<f64>) -> (f64, f64) {
         let (mut open, mut shadowed) = (0.0, 0.0);
-        for p in self.lamps.iter().flat_map(|l| &l.points) {
-            let to = p.position - point;
-            let d = to.norm();
-            let cos = n.dot(&(to / d)).max(0.0);
-            let e = p.intensity * cos / (d * d);
-            open += e;
-            shadowed += e * p.shadow.as_ref().map_or(1.0, |m| m.lit(point, n, d));
+        for lamp in &self.lamps {
+            let (lit, all) = lamp_irradiance(lamp, point, n);
+            shadowed += lit;
+            open += all;
         }
         (open, shadowed)
     }
@@ -217,46 +340,81 @@ impl Lighting {
     }
 }
 
-/// The irradiance one lamp puts on a point: each of its points' light, by the cosine and the
-/// square of the distance, times the fraction its shadow map lets through. Half the points are
-/// tested first (every other one, spread over the disc): when they agree that the point is
-/// wholly lit or wholly in shadow, so are the rest (only a penumbra pays for all of them).
-fn lamp_irradiance(lamp: &Lamp, point: &Point3<f64>, n: &Vector3<f64>) -> f64 {
-    let contribution = |p: &LampPoint| -> (f64, f64) {
-        let to = p.position - point;
-        let facing = n.dot(&to);
-        if facing <= 0.0 {
-            return (0.0, 1.0);
-        }
-        let d2 = to.norm_squared();
-        let d = d2.sqrt();
-        let lit = p.shadow.as_ref().map_or(1.0, |m| m.lit(point, n, d));
-        // cos / d² = (n . to) / d³
-        (p.intensity * facing / (d2 * d), lit)
+/// The irradiance one lamp puts on a point, and what it would put there unshadowed: each of
+/// its points' light, by the cosine and the square of the distance, times the fraction its
+/// shadow lets through. On the table's plane the shadows are looked up in [`TableShadows`].
+/// Elsewhere half the points' shadow maps are tested first (every other one, spread over the
+/// disc): when they agree that the point is wholly lit or wholly in shadow, so are the rest
+/// (only a penumbra pays for all of them).
+fn lamp_irradiance(lamp: &Lamp, point: &Point3<f64>, n: &Vector3<f64>) -> (f64, f64) {
+    let (light, distance) = lamp.light(point, n);
+    let on_plane = point.z.abs() < ON_TABLE_M && n.z > 0.9999;
+    if let Some(lit) = lamp.on_table.as_ref().filter(|_| on_plane).and_then(|t| t.lit(point.x, point.y)) {
+        let total = light.iter().zip(lit).map(|(e, f)| *e as f64 * f).sum();
+        return (total, light.iter().map(|e| *e as f64).sum());
+    }
+    let open: f64 = light.iter().map(|e| *e as f64).sum();
+    let lit = |k: usize| match &lamp.points[k].shadow {
+        Some(map) if light[k] > 0.0 => map.lit(point, n, distance[k] as f64),
+        _ => 1.0,
     };
-    let mut total = 0.0;
-    let (mut all_lit, mut all_dark) = (true, true);
-    for p in lamp.points.iter().step_by(2) {
-        let (e, lit) = contribution(p);
-        total += e * lit;
-        all_lit &= lit >= 1.0;
-        all_dark &= lit <= 0.0;
+    let (mut total, mut all_lit, mut all_dark) = (0.0, true, true);
+    for k in (0..LAMP_POINTS).step_by(2) {
+        let f = lit(k);
+        total += light[k] as f64 * f;
+        all_lit &= f >= 1.0;
+        all_dark &= f <= 0.0;
     }
-    if all_dark {
-        return 0.0;
+    for k in (1..LAMP_POINTS).step_by(2) {
+        // Wholly lit or dark by the points tested: the others' light is taken to do the same.
+        let f = if all_lit {
+            1.0
+        } else if all_dark {
+            0.0
+        } else {
+            lit(k)
+        };
+        total += light[k] as f64 * f;
     }
-    for p in lamp.points.iter().skip(1).step_by(2) {
-        let to = p.position - point;
-        let facing = n.dot(&to);
-        if facing <= 0.0 {
-            continue;
+    (total, open)
+}
+
+impl Lamp {
+    /// Each point's irradiance on a surface at `point` with normal `n` (cosine over the square
+    /// of the distance, 0 facing away), unshadowed, and its distance: in single precision and
+    /// side by side, so the eight are worked out at once.
+    fn light(&self, point: &Point3<f64>, n: &Vector3<f64>) -> ([f32; LAMP_POINTS], [f32; LAMP_POINTS]) {
+        let [x, y, z, intensity] = &self.xyzi;
+        let (p, n) = ([point.x as f32, point.y as f32, point.z as f32], [n.x as f32, n.y as f32, n.z as f32]);
+        let mut light = [0.0f32; LAMP_POINTS];
+        let mut distance = [0.0f32; LAMP_POINTS];
+        for k in 0..LAMP_POINTS {
+            let (dx, dy, dz) = (x[k] - p[0], y[k] - p[1], z[k] - p[2]);
+            let facing = n[0] * dx + n[1] * dy + n[2] * dz;
+            let d2 = dx * dx + dy * dy + dz * dz;
+            let d = d2.sqrt();
+            distance[k] = d;
+            // cos / d² = (n . to) / d³
+            light[k] = if facing > 0.0 { intensity[k] * facing / (d2 * d) } else { 0.0 };
         }
-        let d2 = to.norm_squared();
-        // Wholly lit by the points tested: the others' light is taken as reaching it too.
-        let lit = if all_lit { 1.0 } else { p.shadow.as_ref().map_or(1.0, |m| m.lit(point, n, d2.sqrt())) };
-        total += p.intensity * facing / (d2 * d2.sqrt()) * lit;
+        (light, distance)
     }
-    total
+}
+
+/// The extent `[lo, hi]` (x, y) of the triangles lying on the table's plane facing up, if any.
+fn table_extent(triangles: &[[Point3<f64>; 3]]) -> Option<([f64; 2], [f64; 2])> {
+    let mut extent: Option<([f64; 2], [f64; 2])> = None;
+    for t in triangles {
+        let up = (t[1] - t[0]).cross(&(t[2] - t[0]));
+        if t.iter().all(|c| c.z.abs() < ON_TABLE_M) && up.z > 0.0 {
+            for c in t {
+                let (lo, hi) = extent.get_or_insert(([c.x, c.y], [c.x, c.y]));
+                *lo = [lo[0].min(c.x), lo[1].min(c.y)];
+                *hi = [hi[0].max(c.x), hi[1].max(c.y)];
+            }
+        }
+    }
+    extent
 }
 
 /// Normalised Blinn-Phong, as a multiple of the lamp's irradiance: `(m + 8) / 8 (n·h)^m`.

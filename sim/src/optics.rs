@@ -75,56 +75,49 @@ pub fn vignetting(x: f64, y: f64, exponent: f64) -> f32 {
 
 /// Blurs `image` (`w` wide) with a Gaussian whose sigma varies per pixel (`sigma[i]`, pixels),
 /// in two passes (along rows, then columns), each pixel weighing its neighbours by its own
-/// kernel: the blend of the two discrete Gaussians of a ladder [`VARIANCE_STEP`] apart in
-/// variance that bracket its own (a blend's variance is the blend of the variances, so each
-/// pixel's is exactly its sigma squared). Where the sigma is the same over a kernel's reach
-/// this is that Gaussian blur; across a depth step each side keeps its own spread.
+/// kernel: the discrete Gaussian of the ladder [`VARIANCE_STEP`] apart in variance nearest its
+/// own (within half a step of its sigma squared). Where the sigma is the same over a kernel's
+/// reach this is that Gaussian blur; across a depth step each side keeps its own spread.
 pub fn blur_by_sigma(image: &[f32], w: usize, sigma: &[f32]) -> Vec<f32> {
     let lo = sigma.iter().copied().fold(f32::MAX, f32::min).max(0.0).powi(2);
     let hi = sigma.iter().copied().fold(0.0f32, f32::max).powi(2).max(lo);
-    let rungs = ((hi - lo) / VARIANCE_STEP).ceil() as usize + 2;
+    let rungs = ((hi - lo) / VARIANCE_STEP).round() as usize + 1;
     let kernels: Vec<Vec<f32>> = (0..rungs).map(|k| discrete_gaussian(lo + k as f32 * VARIANCE_STEP)).collect();
-    // Each pixel's blended kernel, as (rung, weight of the next rung).
-    let rung_of = |s: f32| {
-        let t = ((s * s - lo) / VARIANCE_STEP).max(0.0);
-        let k = (t.floor() as usize).min(rungs - 2);
-        (k, (t - k as f32).min(1.0))
-    };
+    let rung: Vec<u16> = sigma
+        .iter()
+        .map(|s| (((s * s - lo) / VARIANCE_STEP).round().max(0.0) as usize).min(rungs - 1) as u16)
+        .collect();
     let h = image.len() / w;
     let mut across = vec![0.0f32; image.len()];
     across.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        let line = &image[y * w..(y + 1) * w];
         for (x, out) in row.iter_mut().enumerate() {
-            let (k, a) = rung_of(sigma[y * w + x]);
-            *out = blended_tap(&kernels[k], &kernels[k + 1], a, x, w, |i| image[y * w + i]);
+            *out = tap(&kernels[rung[y * w + x] as usize], x, w, |i| line[i]);
         }
     });
     let mut out = vec![0.0f32; image.len()];
     out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
         for (x, o) in row.iter_mut().enumerate() {
-            let (k, a) = rung_of(sigma[y * w + x]);
-            *o = blended_tap(&kernels[k], &kernels[k + 1], a, y, h, |i| across[i * w + x]);
+            *o = tap(&kernels[rung[y * w + x] as usize], y, h, |i| across[i * w + x]);
         }
     });
     out
 }
 
 /// One pixel of a pass: the neighbours at `centre - r ..= centre + r` along a line of `len`
-/// (clamped at its ends), weighed by `(1 - a) near + a far`; `far` is the wider kernel.
+/// (clamped at its ends), weighed by `kernel`.
 #[inline(always)]
-fn blended_tap(near: &[f32], far: &[f32], a: f32, centre: usize, len: usize, at: impl Fn(usize) -> f32) -> f32 {
-    let (rn, rf) = (near.len() / 2, far.len() / 2);
-    let mut sum = 0.0;
-    for (j, wf) in far.iter().enumerate() {
-        let off = j as isize - rf as isize;
-        let wn = if off.unsigned_abs() <= rn { near[(off + rn as isize) as usize] } else { 0.0 };
-        let pos = (centre as isize + off).clamp(0, len as isize - 1) as usize;
-        sum += (a * wf + (1.0 - a) * wn) * at(pos);
+fn tap(kernel: &[f32], centre: usize, len: usize, at: impl Fn(usize) -> f32) -> f32 {
+    let r = kernel.len() / 2;
+    if centre >= r && centre + r < len {
+        return kernel.iter().enumerate().map(|(j, k)| k * at(centre + j - r)).sum();
     }
-    sum
+    kernel.iter().enumerate().map(|(j, k)| k * at((centre + j).saturating_sub(r).min(len - 1))).sum()
 }
 
-/// Steps in variance (px²) between the kernels blended.
-pub const VARIANCE_STEP: f32 = 0.05;
+/// Steps in variance (px²) between the kernels of [`blur_by_sigma`]: a pixel's variance is
+/// within half of this of its own (a sigma of 0.5 px within 0.5%).
+pub const VARIANCE_STEP: f32 = 0.01;
 
 /// The discrete Gaussian of variance `t` px² (Lindeberg's `e^-t I_n(t)`, with `I_n` the
 /// modified Bessel functions): the kernel whose variance is `t` however small, where a sampled

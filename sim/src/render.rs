@@ -206,7 +206,6 @@ fn draw_tiles<T: Send>(
 /// each pixel centre, the scene triangle there.
 pub(crate) struct RadianceImage {
     pub(crate) width: usize,
-    pub(crate) height: usize,
     pub(crate) radiance: Vec<f32>,
     /// Per pixel, the drawn triangle at its centre (an index into `inv_z` and `ids`), or
     /// `u32::MAX` for nothing.
@@ -234,7 +233,6 @@ pub(crate) fn render_radiance(
         draw_tiles(&tris, w, h, |tris, area, pixels, _| resolve_radiance(scene, cam, tris, area, pixels, shade));
     let mut out = RadianceImage {
         width: w,
-        height: h,
         radiance: vec![0.0; w * h],
         centre: vec![u32::MAX; w * h],
         inv_z: tris.iter().map(|t| t.inv_z).collect(),
@@ -268,16 +266,25 @@ fn resolve_radiance(
         let dir = world_from_cam * Vector3::new((u - cam.cx) / cam.fx, (v - cam.cy) / cam.fy, 1.0);
         let mut seen: [(u32, u32); SAMPLES] = [(0, 0); SAMPLES];
         let mut kinds = 0;
-        for s in px.shade {
-            let bits = s.to_bits();
-            if bits == 0 {
-                continue;
+        let first = px.shade[0].to_bits();
+        if px.shade.iter().all(|s| s.to_bits() == first) {
+            // The common case, a pixel wholly inside one triangle (or seeing nothing).
+            if first != 0 {
+                seen[0] = (first, SAMPLES as u32);
+                kinds = 1;
             }
-            match seen[..kinds].iter_mut().find(|(b, _)| *b == bits) {
-                Some((_, count)) => *count += 1,
-                None => {
-                    seen[kinds] = (bits, 1);
-                    kinds += 1;
+        } else {
+            for s in px.shade {
+                let bits = s.to_bits();
+                if bits == 0 {
+                    continue;
+                }
+                match seen[..kinds].iter_mut().find(|(b, _)| *b == bits) {
+                    Some((_, count)) => *count += 1,
+                    None => {
+                        seen[kinds] = (bits, 1);
+                        kinds += 1;
+                    }
                 }
             }
         }

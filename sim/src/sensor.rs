@@ -67,8 +67,10 @@ pub fn read_out(sensor: &Sensor, pattern: &FixedPattern, irradiance: &[f32], w: 
         for (x, o) in row.iter_mut().enumerate() {
             let i = y * w + x;
             let mean = electrons(sensor, pattern, i, irradiance[i]);
-            let (shot, read): (f64, f64) = (StandardNormal.sample(&mut rng), StandardNormal.sample(&mut rng));
-            let e = mean + mean.sqrt() * shot + sensor.read_noise_e * read;
+            // Shot (variance `mean`) and read noise (variance `r²`) are independent Gaussians:
+            // their sum is one, of variance `mean + r²`.
+            let noise: f64 = StandardNormal.sample(&mut rng);
+            let e = mean + (mean + sensor.read_noise_e * sensor.read_noise_e).sqrt() * noise;
             *o = (grey(e).clamp(0.0, 255.0) + 0.5) as u8;
         }
     });
