@@ -60,6 +60,8 @@ struct Lamp {
     xyzi: [[f32; LAMP_POINTS]; 4],
     /// Its points' shadows on the table's plane, when shadows are on and the scene has it.
     on_table: Option<TableShadows>,
+    /// The table top's extent on its plane (`[lo, hi]`, x and y), with `on_table`.
+    table_top: Option<([f64; 2], [f64; 2])>,
 }
 
 /// The shadows a lamp's points cast on the table's plane (`z = 0`, the world's table top,
@@ -261,15 +263,24 @@ impl Lighting {
                         (if c < 3 { p.position[c] } else { p.intensity }) as f32
                     })
                 });
-                built.push(Lamp { centre, points, xyzi, on_table: None });
+                built.push(Lamp { centre, points, xyzi, on_table: None, table_top: None });
             }
             if effects.shadows {
+                let extent = table_extent(occluders);
+                // With a table, the shadow maps need only what stands above its plane: the
+                // plane itself is looked up in `TableShadows`, and a point under it is in the
+                // table's shadow where its way to the lamp crosses the table top.
+                let above: Vec<[Point3<f64>; 3]> = match extent {
+                    Some(_) => occluders.iter().filter(|t| t.iter().any(|c| c.z > ON_TABLE_M)).copied().collect(),
+                    None => occluders.to_vec(),
+                };
                 let points: Vec<&mut LampPoint> = built.iter_mut().flat_map(|l| l.points.iter_mut()).collect();
-                points.into_par_iter().for_each(|p| p.shadow = Some(ShadowMap::new(p.position, occluders)));
-                if let Some((lo, hi)) = table_extent(occluders) {
-                    built
-                        .par_iter_mut()
-                        .for_each(|l| l.on_table = Some(TableShadows::new(&l.points, occluders, lo, hi)));
+                points.into_par_iter().for_each(|p| p.shadow = Some(ShadowMap::new(p.position, &above)));
+                if let Some((lo, hi)) = extent {
+                    built.par_iter_mut().for_each(|l| {
+                        l.on_table = Some(TableShadows::new(&l.points, occluders, lo, hi));
+                        l.table_top = Some((lo, hi));
+                    });
                 }
             }
         }
@@ -309,14 +320,14 @@ impl Lighting {
         }
         let sky = self.sky * 0.5 * (1.0 + n.z);
         let (mut diffuse, mut gloss) = (0.0, 0.0);
+        let view = unit(eye - s.point);
         for lamp in &self.lamps {
             let e = lamp_irradiance(lamp, &s.point, &n).0;
             diffuse += e;
             if spec_frac > 0.0 && e > 0.0 {
                 // The highlight's shape from the lamp's centre; its strength from the light
                 // that reaches the point (the disc's few centimetres widen it little).
-                let l = (lamp.centre - s.point).normalize();
-                gloss += e * lobe(&n, &l, &(eye - s.point).normalize(), s.finish.roughness);
+                gloss += e * lobe(&n, &unit(lamp.centre - s.point), &view, s.finish.roughness);
             }
         }
         albedo * (1.0 - spec_frac) * (diffuse + sky) as f32 + spec_frac * gloss as f32
@@ -354,9 +365,19 @@ fn lamp_irradiance(lamp: &Lamp, point: &Point3<f64>, n: &Vector3<f64>) -> (f64, 
         return (total, light.iter().map(|e| *e as f64).sum());
     }
     let open: f64 = light.iter().map(|e| *e as f64).sum();
+    let under_table = |k: usize| {
+        let Some(([x0, y0], [x1, y1])) = lamp.table_top.filter(|_| point.z < -ON_TABLE_M) else { return false };
+        // Where the way from the point up to the lamp point crosses the table's plane.
+        let s = lamp.points[k].position;
+        let t = -point.z / (s.z - point.z);
+        let (x, y) = (point.x + t * (s.x - point.x), point.y + t * (s.y - point.y));
+        (x0..=x1).contains(&x) && (y0..=y1).contains(&y)
+    };
     let lit = |k: usize| match &lamp.points[k].shadow {
-        Some(map) if light[k] > 0.0 => map.lit(point, n, distance[k] as f64),
-        _ => 1.0,
+        _ if light[k] <= 0.0 => 1.0,
+        _ if under_table(k) => 0.0,
+        Some(map) => map.lit(point, n, distance[k] as f64),
+        None => 1.0,
     };
     let (mut total, mut all_lit, mut all_dark) = (0.0, true, true);
     for k in (0..LAMP_POINTS).step_by(2) {
@@ -421,10 +442,16 @@ fn table_extent(triangles: &[[Point3<f64>; 3]]) -> Option<([f64; 2], [f64; 2])> 
 /// The exponent is rounded to a whole number (a whole power is a few products, not a `powf`;
 /// the highlight's width moves by well under a percent).
 fn lobe(n: &Vector3<f64>, l: &Vector3<f64>, view: &Vector3<f64>, roughness: f32) -> f64 {
-    let h = (l + view).normalize();
+    let half = l + view;
+    let cos = n.dot(&half) / half.norm();
     let r = roughness.max(0.02) as f64;
     let m = (2.0 / (r * r) - 2.0).round().max(1.0);
-    (m + 8.0) / 8.0 * n.dot(&h).max(0.0).powi(m as i32)
+    (m + 8.0) / 8.0 * cos.max(0.0).powi(m as i32)
+}
+
+/// `v / |v|` with one division, not three.
+fn unit(v: Vector3<f64>) -> Vector3<f64> {
+    v * (1.0 / v.norm())
 }
 
 /// `LAMP_POINTS` points spread evenly over a disc of `radius` at `centre`, facing the origin

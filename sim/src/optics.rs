@@ -121,13 +121,13 @@ pub const VARIANCE_STEP: f32 = 0.01;
 
 /// The discrete Gaussian of variance `t` px² (Lindeberg's `e^-t I_n(t)`, with `I_n` the
 /// modified Bessel functions): the kernel whose variance is `t` however small, where a sampled
-/// Gaussian of sigma 0.3 px has a variance of 0.008 px², not 0.09. Reaches 3 sigma and two more pixels.
+/// Gaussian of sigma 0.3 px has a variance of 0.008 px², not 0.09. Reaches 3.5 sigma and a pixel more.
 pub fn discrete_gaussian(t: f32) -> Vec<f32> {
     if t <= 1e-6 {
         return vec![1.0];
     }
     let t = t as f64;
-    let r = (3.0 * t.sqrt()).ceil() as usize + 2;
+    let r = (3.5 * t.sqrt()).ceil() as usize + 1;
     // I_n(t) = sum_k (t/2)^(2k+n) / (k! (k+n)!)
     let bessel = |n: usize| {
         let (half, mut term, mut sum) = (t / 2.0, 1.0, 0.0);

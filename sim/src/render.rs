@@ -219,10 +219,10 @@ pub(crate) struct RadianceImage {
 /// Renders `scene` through `cam` as radiance, each pixel's covered samples grouped by the
 /// triangle they see and each triangle shaded once, at the point of its plane on the ray
 /// through the pixel's centre: `shade(triangle, world point)`.
-pub(crate) fn render_radiance(
+pub(crate) fn render_radiance<F: Fn(&ShadedTriangle, &Point3<f64>) -> f32 + Sync>(
     scene: &RenderScene,
     cam: &PinholeCamera,
-    shade: &(dyn Fn(&ShadedTriangle, &Point3<f64>) -> f32 + Sync),
+    shade: &F,
 ) -> RadianceImage {
     let (w, h) = (cam.width as usize, cam.height as usize);
     let mut tris = project_sorted(scene, cam);
@@ -249,13 +249,13 @@ pub(crate) fn render_radiance(
 }
 
 /// One tile's radiance: each pixel's samples counted by triangle, each triangle shaded once.
-fn resolve_radiance(
+fn resolve_radiance<F: Fn(&ShadedTriangle, &Point3<f64>) -> f32 + Sync>(
     scene: &RenderScene,
     cam: &PinholeCamera,
     tris: &[ScreenTriangle],
     area: TileArea,
     pixels: &[PixelSamples],
-    shade: &(dyn Fn(&ShadedTriangle, &Point3<f64>) -> f32 + Sync),
+    shade: &F,
 ) -> (TileArea, Vec<f32>, Vec<u32>) {
     let n = area.w * area.h;
     let (mut radiance, mut centre) = (vec![0.0f32; n], vec![u32::MAX; n]);
