@@ -37,6 +37,8 @@ pub struct CameraImaging {
     source: Vec<(f32, f32)>,
     /// Per pixel: that point's bilinear look-up in the virtual image, worked out once.
     taps: Vec<Tap>,
+    /// The virtual image's pixels some look-up reads: the only ones worth shading.
+    needed: Vec<bool>,
     /// The real image's width.
     width: usize,
     vignette: Vec<f32>,
@@ -85,8 +87,15 @@ impl CameraImaging {
             .collect();
         let pattern = FixedPattern::new(&cam.sensor, w * h, cam.pattern_seed);
         let (vw, vh) = (virt.width as usize, virt.height as usize);
-        let taps = source.iter().map(|&s| Tap::new(s, vw, vh)).collect();
-        CameraImaging { virt, source, taps, width: w, vignette, pattern }
+        let taps: Vec<Tap> = source.iter().map(|&s| Tap::new(s, vw, vh)).collect();
+        let mut needed = vec![false; vw * vh];
+        for t in &taps {
+            let k = t.top_left as usize;
+            for i in [k, k + 1, k + vw, k + vw + 1] {
+                needed[i] = true;
+            }
+        }
+        CameraImaging { virt, source, taps, needed, width: w, vignette, pattern }
     }
 }
 
@@ -148,7 +157,8 @@ impl Imaging {
     /// The finish of a fixed box: the table's with its texture.
     pub fn static_finish(&self, b: &StaticBox) -> Finish {
         match b.name.as_str() {
-            "table" => Finish { specular: 0.02, roughness: 0.7, texture: self.table_texture, albedo_scale: 1.0 },
+            // A matte laminate: its grain, no gloss.
+            "table" => Finish { specular: 0.0, roughness: 1.0, texture: self.table_texture, albedo_scale: 1.0 },
             "floor" => Finish::MATTE,
             _ => Finish { specular: 0.04, roughness: 0.5, texture: 0.0, albedo_scale: 1.0 },
         }
@@ -212,7 +222,7 @@ impl Imaging {
         let shade = |t: &ShadedTriangle, point: &Point3<f64>| {
             lighting.shade(&Surface { point: *point, normal: t.normal, albedo: t.albedo, finish: t.finish }, &eye)
         };
-        let seen = render_radiance(scene, virt, &shade);
+        let seen = render_radiance(scene, virt, &shared.needed, &shade);
         let (w, h) = (cam.pinhole.width as usize, cam.pinhole.height as usize);
         let mut frame =
             Frame { width: w, height: h, image: vec![0; w * h], depth: vec![0.0; w * h], ids: vec![0; w * h] };
@@ -238,15 +248,15 @@ impl Imaging {
                 }
             });
         if self.effects.blur {
-            let sigma: Vec<f32> = frame
+            let variance: Vec<f32> = frame
                 .depth
-                .iter()
+                .par_iter()
                 .map(|&d| {
                     let d = if d > 0.0 { d as f64 } else { cam.lens.focus_distance_m };
-                    cam.lens.blur_sigma_px(d, cam.pixel_pitch_mm) as f32
+                    cam.lens.blur_variance_px2(d, cam.pixel_pitch_mm) as f32
                 })
                 .collect();
-            radiance = optics::blur_by_sigma(&radiance, w, &sigma);
+            radiance = optics::blur_by_variance(&radiance, w, &variance);
         }
         radiance.iter_mut().zip(&shared.vignette).for_each(|(r, v)| *r *= v);
         frame.image = if self.effects.sensor {

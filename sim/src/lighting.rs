@@ -11,7 +11,8 @@
 //! Each lamp is a disc facing the origin, sampled at [`LAMP_POINTS`] points on a Vogel spiral;
 //! each point has its own shadow map (a depth image from that point), so a point of the scene
 //! is lit by the fraction of the lamp it sees: umbra, penumbra and light. `s` is the finish's
-//! specular fraction; `m = 2 / roughness² - 2` the normalised Blinn-Phong exponent.
+//! specular fraction; `m = 2 / roughness² - 2` (to an even number) the normalised Blinn-Phong
+//! exponent.
 //!
 //! Written by hand: the shadow maps reuse nothing of a GPU, and the shading is a few lines.
 
@@ -24,9 +25,9 @@ use rayon::prelude::*;
 /// maps' bilinear look-ups and the lens's blur).
 pub const LAMP_POINTS: usize = 8;
 /// Shadow maps are this many texels square.
-const MAP_SIZE: usize = 512;
-/// Half the field of view of a shadow map, radians: the whole table from a lamp over it.
-const MAP_HALF_FOV: f64 = 0.75;
+const MAP_SIZE: usize = 384;
+/// Widest half field of view of a shadow map, radians.
+const MAX_HALF_FOV: f64 = 1.2;
 /// Depth tolerance of a shadow test, metres, beyond the normal offset.
 const SHADOW_BIAS_M: f32 = 1.5e-3;
 
@@ -91,7 +92,9 @@ impl TableShadows {
             ((hi[0] - lo[0]) / TABLE_CELL_M).ceil() as usize + 1,
             ((hi[1] - lo[1]) / TABLE_CELL_M).ceil() as usize + 1,
         );
-        let mut shadows = TableShadows { x0: lo[0], y0: lo[1], w, h, bits: vec![0; w * h] };
+        // Each point's shadow outline on the plane, in cell units, then drawn band by band of
+        // rows in parallel.
+        let mut cast: Vec<(u8, [[f64; 2]; 3])> = Vec::new();
         for (k, p) in points.iter().enumerate() {
             let s = p.position;
             for t in occluders {
@@ -100,63 +103,28 @@ impl TableShadows {
                 }
                 // The part below the lamp point (what is above it lights nothing under it),
                 // projected from the point onto z = 0.
-                let below: Vec<Point3<f64>> = clip_near(&t.map(|c| Point3::new(c.x, c.y, s.z - 1e-3 - c.z)), 0.0)
+                let flip = |c: Point3<f64>| Point3::new(c.x, c.y, s.z - 1e-3 - c.z);
+                let outline: Vec<[f64; 2]> = clip_near(&t.map(flip), 0.0)
                     .into_iter()
-                    .map(|c| Point3::new(c.x, c.y, s.z - 1e-3 - c.z))
-                    .collect();
-                let cast: Vec<[f64; 2]> = below
-                    .iter()
                     .map(|c| {
+                        let c = flip(c);
                         let f = s.z / (s.z - c.z);
-                        [
-                            (s.x + (c.x - s.x) * f - shadows.x0) / TABLE_CELL_M,
-                            (s.y + (c.y - s.y) * f - shadows.y0) / TABLE_CELL_M,
-                        ]
+                        [(s.x + (c.x - s.x) * f - lo[0]) / TABLE_CELL_M, (s.y + (c.y - s.y) * f - lo[1]) / TABLE_CELL_M]
                     })
                     .collect();
-                for j in 1..cast.len().saturating_sub(1) {
-                    shadows.fill([cast[0], cast[j], cast[j + 1]], 1 << k);
+                for j in 1..outline.len().saturating_sub(1) {
+                    cast.push((1 << k, [outline[0], outline[j], outline[j + 1]]));
                 }
             }
         }
-        shadows
-    }
-
-    /// Sets `bit` in every cell whose centre lies in the triangle (in cell units, cell `i`'s
-    /// centre at `i + 0.5`).
-    fn fill(&mut self, v: [[f64; 2]; 3], bit: u8) {
-        let area = (v[1][0] - v[0][0]) * (v[2][1] - v[0][1]) - (v[2][0] - v[0][0]) * (v[1][1] - v[0][1]);
-        if area.abs() < 1e-12 {
-            return;
-        }
-        let edges = [0, 1, 2].map(|i| {
-            let (p, q) = (v[i], v[(i + 1) % 3]);
-            let (a, b) = (-(q[1] - p[1]) * area.signum(), (q[0] - p[0]) * area.signum());
-            [a, b, -(a * p[0] + b * p[1])]
+        let mut bits = vec![0u8; w * h];
+        let band = h.div_ceil(16).max(1);
+        bits.par_chunks_mut(band * w).enumerate().for_each(|(b, rows)| {
+            for (bit, tri) in &cast {
+                fill(rows, w, b * band, tri, *bit);
+            }
         });
-        let top = v.iter().map(|c| c[1]).fold(f64::MAX, f64::min) - 0.5;
-        let bottom = v.iter().map(|c| c[1]).fold(f64::MIN, f64::max) - 0.5;
-        let (y0, y1) = (top.ceil().max(0.0) as i64, bottom.floor().min(self.h as f64 - 1.0) as i64);
-        let last = (self.w - 1) as f64;
-        for y in y0..=y1 {
-            // The run of cell centres inside all three edges along this row.
-            let cy = y as f64 + 0.5;
-            let (mut lo, mut hi) = (0.0f64, last);
-            for [a, b, c] in edges {
-                let rest = b * cy + c;
-                if a > 0.0 {
-                    lo = lo.max((-rest / a - 0.5).ceil());
-                } else if a < 0.0 {
-                    hi = hi.min((-rest / a - 0.5).floor());
-                } else if rest < 0.0 {
-                    hi = -1.0;
-                }
-            }
-            if lo <= hi {
-                let row = &mut self.bits[y as usize * self.w..][lo as usize..=hi as usize];
-                row.iter_mut().for_each(|cell| *cell |= bit);
-            }
-        }
+        TableShadows { x0: lo[0], y0: lo[1], w, h, bits }
     }
 
     /// Per lamp point, the fraction (0-1) of its light that reaches `(x, y)` on the plane.
@@ -168,6 +136,10 @@ impl TableShadows {
         let (i, j) = (gx as usize, gy as usize);
         let (ax, ay) = (gx - i as f64, gy - j as f64);
         let k = j * self.w + i;
+        let any = self.bits[k] | self.bits[k + 1] | self.bits[k + self.w] | self.bits[k + self.w + 1];
+        if any == 0 {
+            return Some([1.0; LAMP_POINTS]); // the common case: in no point's shadow
+        }
         let cells = [(self.bits[k], (1.0 - ax) * (1.0 - ay)), (self.bits[k + 1], ax * (1.0 - ay))];
         let cells =
             [cells[0], cells[1], (self.bits[k + self.w], (1.0 - ax) * ay), (self.bits[k + self.w + 1], ax * ay)];
@@ -220,7 +192,11 @@ impl TextureGrid {
         if !(gx >= 0.0 && gy >= 0.0 && gx < (self.w - 1) as f64 && gy < (self.h - 1) as f64) {
             return table_texture(x, y);
         }
-        crate::optics::bilinear(&self.values, self.w, self.h, gx, gy)
+        // Both coordinates are positive here: truncation is the floor.
+        let (i, j) = (gx as usize, gy as usize);
+        let (ax, ay) = ((gx - i as f64) as f32, (gy - j as f64) as f32);
+        let (k, v) = (j * self.w + i, &self.values);
+        (1.0 - ay) * ((1.0 - ax) * v[k] + ax * v[k + 1]) + ay * ((1.0 - ax) * v[k + self.w] + ax * v[k + self.w + 1])
     }
 }
 
@@ -351,6 +327,44 @@ impl Lighting {
     }
 }
 
+/// Sets `bit` in every cell of `rows` (whole rows of `w` cells, the first of them row `row0`)
+/// whose centre lies in the triangle `v` (in cell units, cell `i`'s centre at `i + 0.5`).
+fn fill(rows: &mut [u8], w: usize, row0: usize, v: &[[f64; 2]; 3], bit: u8) {
+    let area = (v[1][0] - v[0][0]) * (v[2][1] - v[0][1]) - (v[2][0] - v[0][0]) * (v[1][1] - v[0][1]);
+    if area.abs() < 1e-12 {
+        return;
+    }
+    let edges = [0, 1, 2].map(|i| {
+        let (p, q) = (v[i], v[(i + 1) % 3]);
+        let (a, b) = (-(q[1] - p[1]) * area.signum(), (q[0] - p[0]) * area.signum());
+        [a, b, -(a * p[0] + b * p[1])]
+    });
+    let top = v.iter().map(|c| c[1]).fold(f64::MAX, f64::min) - 0.5;
+    let bottom = v.iter().map(|c| c[1]).fold(f64::MIN, f64::max) - 0.5;
+    let last_row = (row0 + rows.len() / w) as f64 - 1.0;
+    let (y0, y1) = (top.ceil().max(row0 as f64) as i64, bottom.floor().min(last_row) as i64);
+    let last = (w - 1) as f64;
+    for y in y0..=y1 {
+        // The run of cell centres inside all three edges along this row.
+        let cy = y as f64 + 0.5;
+        let (mut lo, mut hi) = (0.0f64, last);
+        for [a, b, c] in edges {
+            let rest = b * cy + c;
+            if a > 0.0 {
+                lo = lo.max((-rest / a - 0.5).ceil());
+            } else if a < 0.0 {
+                hi = hi.min((-rest / a - 0.5).floor());
+            } else if rest < 0.0 {
+                hi = -1.0;
+            }
+        }
+        if lo <= hi {
+            let row = &mut rows[(y as usize - row0) * w..][lo as usize..=hi as usize];
+            row.iter_mut().for_each(|cell| *cell |= bit);
+        }
+    }
+}
+
 /// The irradiance one lamp puts on a point, and what it would put there unshadowed: each of
 /// its points' light, by the cosine and the square of the distance, times the fraction its
 /// shadow lets through. On the table's plane the shadows are looked up in [`TableShadows`].
@@ -439,14 +453,19 @@ fn table_extent(triangles: &[[Point3<f64>; 3]]) -> Option<([f64; 2], [f64; 2])> 
 }
 
 /// Normalised Blinn-Phong, as a multiple of the lamp's irradiance: `(m + 8) / 8 (n·h)^m`.
-/// The exponent is rounded to a whole number (a whole power is a few products, not a `powf`;
-/// the highlight's width moves by well under a percent).
+/// The exponent is rounded to an even number: an even power of `n.h` is a power of
+/// `(n.(l + v))² / |l + v|²`, a few products and no root (the highlight's width moves by a few
+/// percent at most).
 fn lobe(n: &Vector3<f64>, l: &Vector3<f64>, view: &Vector3<f64>, roughness: f32) -> f64 {
     let half = l + view;
-    let cos = n.dot(&half) / half.norm();
+    let along = n.dot(&half);
+    if along <= 0.0 {
+        return 0.0;
+    }
     let r = roughness.max(0.02) as f64;
-    let m = (2.0 / (r * r) - 2.0).round().max(1.0);
-    (m + 8.0) / 8.0 * cos.max(0.0).powi(m as i32)
+    let pairs = ((1.0 / (r * r) - 1.0).round() as i32).max(1);
+    let m = 2.0 * pairs as f64;
+    (m + 8.0) / 8.0 * (along * along / half.norm_squared()).powi(pairs)
 }
 
 /// `v / |v|` with one division, not three.
@@ -472,14 +491,28 @@ fn disc_points(centre: Point3<f64>, radius: f64) -> Vec<Point3<f64>> {
 
 impl ShadowMap {
     /// Draws the depth of `triangles` seen from `from`, looking at the origin.
+    /// The map looks at the middle of the triangles' bounding box and takes in all of it: a
+    /// point it does not see lies in no triangle's shadow (its way to the lamp point passes
+    /// none of them), so the texels are as fine as the occluders' extent allows.
     fn new(from: Point3<f64>, triangles: &[[Point3<f64>; 3]]) -> ShadowMap {
-        let forward = (-from.coords).try_normalize(1e-12).unwrap_or(-Vector3::z());
+        let corners = bounding_corners(triangles);
+        let middle = corners.iter().fold(Vector3::zeros(), |a, c| a + c.coords) / 8.0;
+        let forward = (middle - from.coords).try_normalize(1e-9).unwrap_or(-Vector3::z());
         let up = if forward.z.abs() < 0.9 { Vector3::z() } else { Vector3::y() };
         // View frame: z forward, x right, y down, as the cameras' frames.
         let rot = UnitQuaternion::face_towards(&forward, &-up);
         let world_from_view = Isometry3::from_parts(from.coords.into(), rot);
         let view_from_world = world_from_view.inverse();
-        let focal = (MAP_SIZE as f64 / 2.0) / MAP_HALF_FOV.tan();
+        // The widest the box's corners lie off the axis (tangent), with a margin, capped where
+        // a corner lies beside or behind the lamp point.
+        let reach = corners
+            .iter()
+            .map(|c| {
+                let q = view_from_world * c;
+                if q.z < 0.05 { MAX_HALF_FOV.tan() } else { q.x.abs().max(q.y.abs()) / q.z }
+            })
+            .fold(0.05f64, f64::max);
+        let focal = (MAP_SIZE as f64 / 2.0) / (1.05 * reach).min(MAX_HALF_FOV.tan());
         let r = *view_from_world.rotation.to_rotation_matrix().matrix();
         let s = view_from_world.translation.vector;
         let row =
@@ -590,6 +623,25 @@ impl ShadowMap {
         ((1.0 - ay) * ((1.0 - ax) * at(0) + ax * at(1)) + ay * ((1.0 - ax) * at(MAP_SIZE) + ax * at(MAP_SIZE + 1)))
             as f64
     }
+}
+
+/// The eight corners of the triangles' bounding box (all at the origin if there are none).
+fn bounding_corners(triangles: &[[Point3<f64>; 3]]) -> [Point3<f64>; 8] {
+    let (mut lo, mut hi) = (Point3::from([f64::MAX; 3]), Point3::from([f64::MIN; 3]));
+    for p in triangles.iter().flatten() {
+        lo = lo.inf(p);
+        hi = hi.sup(p);
+    }
+    if triangles.is_empty() {
+        (lo, hi) = (Point3::origin(), Point3::origin());
+    }
+    std::array::from_fn(|k| {
+        Point3::new(
+            if k & 1 == 0 { lo.x } else { hi.x },
+            if k & 2 == 0 { lo.y } else { hi.y },
+            if k & 4 == 0 { lo.z } else { hi.z },
+        )
+    })
 }
 
 /// The table's faint texture: smooth value noise in the table's plane, in -1..1, at three

@@ -73,19 +73,19 @@ pub fn vignetting(x: f64, y: f64, exponent: f64) -> f32 {
     (1.0 + x * x + y * y).powf(-exponent / 2.0) as f32
 }
 
-/// Blurs `image` (`w` wide) with a Gaussian whose sigma varies per pixel (`sigma[i]`, pixels),
-/// in two passes (along rows, then columns), each pixel weighing its neighbours by its own
-/// kernel: the discrete Gaussian of the ladder [`VARIANCE_STEP`] apart in variance nearest its
-/// own (within half a step of its sigma squared). Where the sigma is the same over a kernel's
-/// reach this is that Gaussian blur; across a depth step each side keeps its own spread.
-pub fn blur_by_sigma(image: &[f32], w: usize, sigma: &[f32]) -> Vec<f32> {
-    let lo = sigma.iter().copied().fold(f32::MAX, f32::min).max(0.0).powi(2);
-    let hi = sigma.iter().copied().fold(0.0f32, f32::max).powi(2).max(lo);
+/// Blurs `image` (`w` wide) with a Gaussian whose variance varies per pixel (`variance[i]`,
+/// px²), in two passes (along rows, then columns), each pixel weighing its neighbours by its
+/// own kernel: the discrete Gaussian of the ladder [`VARIANCE_STEP`] apart nearest its own
+/// (within half a step). Where the variance is the same over a kernel's reach this is that
+/// Gaussian blur; across a depth step each side keeps its own spread.
+pub fn blur_by_variance(image: &[f32], w: usize, variance: &[f32]) -> Vec<f32> {
+    let lo = variance.iter().copied().fold(f32::MAX, f32::min).max(0.0);
+    let hi = variance.iter().copied().fold(0.0f32, f32::max).max(lo);
     let rungs = ((hi - lo) / VARIANCE_STEP).round() as usize + 1;
     let kernels: Vec<Vec<f32>> = (0..rungs).map(|k| discrete_gaussian(lo + k as f32 * VARIANCE_STEP)).collect();
-    let rung: Vec<u16> = sigma
-        .iter()
-        .map(|s| (((s * s - lo) / VARIANCE_STEP).round().max(0.0) as usize).min(rungs - 1) as u16)
+    let rung: Vec<u16> = variance
+        .par_iter()
+        .map(|t| (((t - lo) / VARIANCE_STEP).round().max(0.0) as usize).min(rungs - 1) as u16)
         .collect();
     let h = image.len() / w;
     let mut across = vec![0.0f32; image.len()];
@@ -115,7 +115,7 @@ fn tap(kernel: &[f32], centre: usize, len: usize, at: impl Fn(usize) -> f32) -> 
     kernel.iter().enumerate().map(|(j, k)| k * at((centre + j).saturating_sub(r).min(len - 1))).sum()
 }
 
-/// Steps in variance (px²) between the kernels of [`blur_by_sigma`]: a pixel's variance is
+/// Steps in variance (px²) between the kernels of [`blur_by_variance`]: a pixel's variance is
 /// within half of this of its own (a sigma of 0.5 px within 0.5%).
 pub const VARIANCE_STEP: f32 = 0.01;
 
@@ -184,12 +184,12 @@ mod tests {
     use super::*;
 
     #[test]
-    fn a_uniform_sigma_blurs_as_the_plain_gaussian() {
+    fn a_uniform_variance_blurs_as_the_plain_gaussian() {
         let w = 40;
         let image: Vec<f32> = (0..w * 30).map(|i| ((i * 7919) % 13) as f32).collect();
         for s in [0.9f32, 1.2] {
             let plain = gaussian_blur(&image, w, s);
-            let varying = blur_by_sigma(&image, w, &vec![s; image.len()]);
+            let varying = blur_by_variance(&image, w, &vec![s * s; image.len()]);
             let worst = plain.iter().zip(&varying).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
             assert!(worst < 1e-4, "sigma {s}: differs by {worst}");
         }

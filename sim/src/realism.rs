@@ -163,11 +163,16 @@ impl Lens {
         aperture * f * (z - zf).abs() / (z * (zf - f)) / pitch_mm
     }
 
-    /// Sigma of the whole blur at `depth_m`, pixels: the lens's own and the defocus disc's
-    /// (a uniform disc of diameter `c` has a sigma of `c / 4` along each axis).
+    /// Variance of the whole blur at `depth_m`, px²: the lens's own and the defocus disc's (a
+    /// uniform disc of diameter `c` has a variance of `c² / 16` along each axis).
+    pub fn blur_variance_px2(&self, depth_m: f64, pitch_mm: f64) -> f64 {
+        let disc = self.circle_of_confusion_px(depth_m, pitch_mm);
+        self.psf_sigma_px.powi(2) + disc * disc / 16.0
+    }
+
+    /// Sigma of the whole blur at `depth_m`, pixels.
     pub fn blur_sigma_px(&self, depth_m: f64, pitch_mm: f64) -> f64 {
-        let disc = self.circle_of_confusion_px(depth_m, pitch_mm) / 4.0;
-        (self.psf_sigma_px.powi(2) + disc * disc).sqrt()
+        self.blur_variance_px2(depth_m, pitch_mm).sqrt()
     }
 }
 

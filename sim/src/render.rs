@@ -218,10 +218,12 @@ pub(crate) struct RadianceImage {
 
 /// Renders `scene` through `cam` as radiance, each pixel's covered samples grouped by the
 /// triangle they see and each triangle shaded once, at the point of its plane on the ray
-/// through the pixel's centre: `shade(triangle, world point)`.
+/// through the pixel's centre: `shade(triangle, world point)`. Only the pixels `needed` marks
+/// are shaded (the rest keep radiance 0); the centre map is whole.
 pub(crate) fn render_radiance<F: Fn(&ShadedTriangle, &Point3<f64>) -> f32 + Sync>(
     scene: &RenderScene,
     cam: &PinholeCamera,
+    needed: &[bool],
     shade: &F,
 ) -> RadianceImage {
     let (w, h) = (cam.width as usize, cam.height as usize);
@@ -229,8 +231,9 @@ pub(crate) fn render_radiance<F: Fn(&ShadedTriangle, &Point3<f64>) -> f32 + Sync
     for (i, t) in tris.iter_mut().enumerate() {
         t.payload = f32::from_bits(i as u32 + 1);
     }
-    let tiles =
-        draw_tiles(&tris, w, h, |tris, area, pixels, _| resolve_radiance(scene, cam, tris, area, pixels, shade));
+    let tiles = draw_tiles(&tris, w, h, |tris, area, pixels, _| {
+        resolve_radiance(scene, cam, tris, area, pixels, |p| needed[p], shade)
+    });
     let mut out = RadianceImage {
         width: w,
         radiance: vec![0.0; w * h],
@@ -255,15 +258,24 @@ fn resolve_radiance<F: Fn(&ShadedTriangle, &Point3<f64>) -> f32 + Sync>(
     tris: &[ScreenTriangle],
     area: TileArea,
     pixels: &[PixelSamples],
+    needed: impl Fn(usize) -> bool,
     shade: &F,
 ) -> (TileArea, Vec<f32>, Vec<u32>) {
     let n = area.w * area.h;
     let (mut radiance, mut centre) = (vec![0.0f32; n], vec![u32::MAX; n]);
     let eye = cam.centre();
     let world_from_cam = cam.world_from_cam.rotation.to_rotation_matrix();
+    let (inv_fx, inv_fy) = (1.0 / cam.fx, 1.0 / cam.fy);
     for (p, px) in pixels.iter().enumerate() {
-        let (u, v) = ((area.x0 + p % area.w) as f64, (area.y0 + p / area.w) as f64);
-        let dir = world_from_cam * Vector3::new((u - cam.cx) / cam.fx, (v - cam.cy) / cam.fy, 1.0);
+        if px.centre != NO_TRIANGLE {
+            centre[p] = px.centre;
+        }
+        let (col, row) = (area.x0 + p % area.w, area.y0 + p / area.w);
+        if !needed(row * cam.width as usize + col) {
+            continue;
+        }
+        let (u, v) = (col as f64, row as f64);
+        let (x, y) = ((u - cam.cx) * inv_fx, (v - cam.cy) * inv_fy);
         let mut seen: [(u32, u32); SAMPLES] = [(0, 0); SAMPLES];
         let mut kinds = 0;
         let first = px.shade[0].to_bits();
@@ -290,17 +302,21 @@ fn resolve_radiance<F: Fn(&ShadedTriangle, &Point3<f64>) -> f32 + Sync>(
         }
         let mut sum = 0.0f32;
         for &(bits, count) in &seen[..kinds] {
-            let t = &scene.triangles[tris[bits as usize - 1].source as usize];
+            let drawn = &tris[bits as usize - 1];
+            let t = &scene.triangles[drawn.source as usize];
             // The pixel centre's ray meets the triangle's plane (beside the triangle, for a
-            // pixel it only partly covers: the plane's shading carries on smoothly).
-            let along = t.normal.dot(&(t.corners[0] - eye)) / t.normal.dot(&dir);
-            let point = if along.is_finite() && along > 0.0 { eye + dir * along } else { t.corners[0] };
+            // pixel it only partly covers: the plane's shading carries on smoothly), at the
+            // depth the plane of `1/z` over the pixels gives.
+            let [a, b, c] = drawn.inv_z;
+            let z = 1.0 / (a * u + b * v + c);
+            let point = if z.is_finite() && z > 0.0 {
+                eye + world_from_cam * Vector3::new(x * z, y * z, z)
+            } else {
+                t.corners[0]
+            };
             sum += count as f32 * shade(t, &point);
         }
         radiance[p] = sum / SAMPLES as f32;
-        if px.centre != NO_TRIANGLE {
-            centre[p] = px.centre;
-        }
     }
     (area, radiance, centre)
 }

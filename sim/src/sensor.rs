@@ -17,11 +17,14 @@ use rand::{SeedableRng, rngs::Xoshiro256PlusPlus};
 use rand_distr::{Distribution, StandardNormal};
 use rayon::prelude::*;
 
-/// The fixed patterns of one sensor: per-pixel gain factor and offset in electrons.
+/// What one sensor keeps from frame to frame: its fixed patterns (per-pixel gain factor and
+/// offset in electrons) and its response curve, tabulated.
 #[derive(Debug, Clone)]
 pub struct FixedPattern {
     gain: Vec<f32>,
     offset_e: Vec<f32>,
+    /// The sensor's response tabulated (see [`RESPONSE_STEPS`]).
+    response: Vec<f64>,
 }
 
 impl FixedPattern {
@@ -35,7 +38,10 @@ impl FixedPattern {
             // A dark current's offset is never negative on average; its spread is.
             offset_e.push((sensor.dsnu_e as f32 * (1.0 + o)).max(0.0));
         }
-        FixedPattern { gain, offset_e }
+        let response = (0..=RESPONSE_STEPS)
+            .map(|k| sensor.grey_level(k as f64 / RESPONSE_STEPS as f64 * sensor.full_well_e))
+            .collect();
+        FixedPattern { gain, offset_e, response }
     }
 }
 
@@ -51,9 +57,7 @@ const RESPONSE_STEPS: usize = 4096;
 
 /// Exposes and reads out an image: `irradiance` per pixel (vignetting included), `w` wide.
 pub fn read_out(sensor: &Sensor, pattern: &FixedPattern, irradiance: &[f32], w: usize, seed: u64) -> Vec<u8> {
-    let table: Vec<f64> = (0..=RESPONSE_STEPS)
-        .map(|k| sensor.grey_level(k as f64 / RESPONSE_STEPS as f64 * sensor.full_well_e))
-        .collect();
+    let table = &pattern.response;
     let grey = |e: f64| {
         let t = (e / sensor.full_well_e).clamp(0.0, 1.0) * RESPONSE_STEPS as f64;
         let k = (t as usize).min(RESPONSE_STEPS - 1);
@@ -121,9 +125,11 @@ mod tests {
         a.prnu = 0.0;
         a.dsnu_e = 0.0;
         let b = Sensor { gain: a.gain * 1.08, black_level_dn: a.black_level_dn + 3.0, ..a };
-        let pattern = FixedPattern::new(&a, 64 * 64, 1);
         let field = vec![0.5f32; 64 * 64];
-        let mean = |s: &Sensor| read_out(s, &pattern, &field, 64, 3).iter().map(|&g| g as f64).sum::<f64>() / 4096.0;
+        let mean = |s: &Sensor| {
+            let pattern = FixedPattern::new(s, 64 * 64, 1);
+            read_out(s, &pattern, &field, 64, 3).iter().map(|&g| g as f64).sum::<f64>() / 4096.0
+        };
         let (ma, mb) = (mean(&a), mean(&b));
         let ideal = |s: &Sensor| s.black_level_dn + 255.0 * s.gain * 0.5 * s.white_e / s.full_well_e;
         assert!((ma - ideal(&a)).abs() < 0.1 && (mb - ideal(&b)).abs() < 0.1, "{ma} {mb}");

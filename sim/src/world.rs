@@ -745,6 +745,26 @@ position_m = [0.0, 0.0, 0.015]
     }
 
     #[test]
+    fn the_realism_preset_and_its_effects_are_read_and_bad_ones_named() {
+        let w = WorldFile::parse(GOOD, "w.toml").unwrap();
+        assert_eq!(w.realism, Preset::Realistic);
+        assert!(w.effects().sensor && w.effects().arm_as_built);
+        let ideal = GOOD.replace("seed = 3", "seed = 3\nrealism = \"ideal\"\n[effects]\nblur = true");
+        let w = WorldFile::parse(&ideal, "w.toml").unwrap();
+        assert!(w.effects().blur && !w.effects().sensor);
+        let (line, field, message) = error_of(&GOOD.replace("seed = 3", "seed = 3\nrealism = \"photoreal\""));
+        assert_eq!((line, field.as_str()), (3, "realism"));
+        assert!(message.contains("unknown variant"), "{message}");
+        let bad_lens = GOOD.replace(
+            "focal_px = 900.0\nposition_m = [0.1",
+            "focal_px = 900.0\nlens = { f_number = 0.1 }\nposition_m = [0.1",
+        );
+        let (line, field, message) = error_of(&bad_lens);
+        assert_eq!((line, field.as_str()), (13, "cameras.right.lens.f_number"));
+        assert!(message.contains("must be within"), "{message}");
+    }
+
+    #[test]
     fn a_clutter_count_of_zero_is_refused() {
         let with_clutter = GOOD.to_string()
             + "[clutter]\nregion_m = { min = [-0.1, -0.1], max = [0.1, 0.1] }\nobjects = [{ model = \"block\", count = 0 }]\n";
