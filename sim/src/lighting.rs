@@ -4,15 +4,18 @@
 //! Brightness is in the ideal renderer's units (a white matte surface under irradiance 1 is 1):
 //!
 //! ```text
-//! brightness = albedo (1 - s) (E_lamps + E_sky) + s Σ_lamp-points E_k (m + 8) / 8 (n·h_k)^m
-//! E_k = I_k max(0, n·l_k) / d_k² · lit_k,   E_sky = sky (1 + n_z) / 2
+//! brightness = albedo (1 - s) (E_lamps + E_sky) + s E_lamps (m + 8) / 8 (n·h)^m
+//! E_lamps = Σ_lamp-points I_k max(0, n·l_k) / d_k² · lit_k,   E_sky = sky (1 + n_z) / 2
 //! ```
 //!
-//! Each lamp is a disc facing the origin, sampled at [`LAMP_POINTS`] points on a Vogel spiral;
-//! each point has its own shadow map (a depth image from that point), so a point of the scene
-//! is lit by the fraction of the lamp it sees: umbra, penumbra and light. `s` is the finish's
-//! specular fraction; `m = 2 / roughness² - 2` (to an even number) the normalised Blinn-Phong
-//! exponent.
+//! Each lamp is a disc facing the origin, sampled at [`LAMP_POINTS`] points on a Vogel spiral,
+//! so a point of the scene is lit by the fraction of the lamp it sees: umbra, penumbra and
+//! light. On the table's plane (most of what the cameras see) each point's shadow is cast
+//! exactly, every occluder's lit faces projected from the lamp point onto the plane
+//! ([`TableShadows`]); elsewhere each point has a shadow map (a depth image from that point of
+//! what stands above the table). `s` is the finish's specular fraction; `h` the half-way vector
+//! to the lamp's centre; `m = 2 / roughness² - 2` (to an even number) the normalised
+//! Blinn-Phong exponent.
 //!
 //! Written by hand: the shadow maps reuse nothing of a GPU, and the shading is a few lines.
 
