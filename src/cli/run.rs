@@ -36,6 +36,22 @@ fn cycle_json(c: &Cycle) -> Value {
     })
 }
 
+/// A run that failed in a realistic cell, said so: vision there is given the cameras as the
+/// world file draws them, and on them it does not find the calibration flag yet.
+fn realistic_hint(e: anyhow::Error, scn: &sim::Scenario, args: &RunArgs) -> anyhow::Error {
+    let effects = scn.world.effects();
+    let calibrating = e.chain().any(|c| c.to_string() == "calibrating");
+    if !calibrating || args.connect.is_some() || !(effects.mounting || effects.sensor || effects.specular) {
+        return e;
+    }
+    e.context(format!(
+        "{} is a realistic cell (`realism`): vision is given its cameras as drawn, uncalibrated, and \
+         does not yet find the flag through them (README, \"The realistic cell\"); its ideal copy in \
+         worlds/ideal/ runs",
+        args.world.display()
+    ))
+}
+
 pub fn run(args: RunArgs) -> anyhow::Result<()> {
     let scn = sim::Scenario::load(&args.world)?;
     let seed = args.seed.unwrap_or(scn.world.seed);
@@ -64,7 +80,8 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
     let source = args.hand_eye.clone().map_or(HandEye::Calibrate, HandEye::File);
     let mut recording = args.rerun.as_ref().map(Recording::start).transpose()?;
     let mut judge = Judge::new(cell.is_local(), &scn.library);
-    let report = run_once(&cell, &scn, seed, &source, &config, quiet, &mut line, recording.as_mut(), &mut judge)?;
+    let report = run_once(&cell, &scn, seed, &source, &config, quiet, &mut line, recording.as_mut(), &mut judge)
+        .map_err(|e| realistic_hint(e, &scn, &args))?;
     cell.stop()?;
     if let Some(r) = recording {
         r.finish()?;
