@@ -80,7 +80,14 @@ struct TableShadows {
     h: usize,
     /// Bit `k` of a cell: lamp point `k`'s light does not reach the cell's centre.
     bits: Vec<u8>,
+    /// Cells under a part resting on the table (under its bottom faces): in its shadow, but no
+    /// camera sees them, and a point beside the part must not take their dark into its
+    /// interpolation (it would darken a pixel-wide line along every part's lit foot).
+    under: Vec<u8>,
 }
+
+/// A part's face lower than this over the table, facing down, is a foot on it, metres.
+const FOOT_M: f64 = 2e-3;
 
 /// Cells of the table's shadow grid, metres.
 const TABLE_CELL_M: f64 = 0.002;
@@ -129,7 +136,16 @@ impl TableShadows {
                 fill(rows, w, b * band, tri, *bit);
             }
         });
-        TableShadows { x0: lo[0], y0: lo[1], w, h, bits }
+        let feet: Vec<[[f64; 2]; 3]> = occluders
+            .iter()
+            .filter(|t| t.iter().all(|c| c.z.abs() <= FOOT_M) && (t[1] - t[0]).cross(&(t[2] - t[0])).z < 0.0)
+            .map(|t| t.map(|c| [(c.x - lo[0]) / TABLE_CELL_M, (c.y - lo[1]) / TABLE_CELL_M]))
+            .collect();
+        let mut under = vec![0u8; w * h];
+        for foot in &feet {
+            fill(&mut under, w, 0, foot, 1);
+        }
+        TableShadows { x0: lo[0], y0: lo[1], w, h, bits, under }
     }
 
     /// Per lamp point, the fraction (0-1) of its light that reaches `(x, y)` on the plane.
@@ -145,10 +161,18 @@ impl TableShadows {
         if any == 0 {
             return Some([1.0; LAMP_POINTS]); // the common case: in no point's shadow
         }
-        let cells = [(self.bits[k], (1.0 - ax) * (1.0 - ay)), (self.bits[k + 1], ax * (1.0 - ay))];
-        let cells =
-            [cells[0], cells[1], (self.bits[k + self.w], (1.0 - ax) * ay), (self.bits[k + self.w + 1], ax * ay)];
-        Some(std::array::from_fn(|b| cells.iter().map(|(bits, wt)| if bits & (1 << b) == 0 { *wt } else { 0.0 }).sum()))
+        let at = [k, k + 1, k + self.w, k + self.w + 1];
+        let mut weight = [(1.0 - ax) * (1.0 - ay), ax * (1.0 - ay), (1.0 - ax) * ay, ax * ay];
+        // Cells under a part do not speak for a point beside it.
+        let open: f64 = at.iter().zip(&weight).filter(|(c, _)| self.under[**c] == 0).map(|(_, wt)| wt).sum();
+        if open > 0.0 && open < 1.0 {
+            for (c, wt) in at.iter().zip(weight.iter_mut()) {
+                *wt = if self.under[*c] == 0 { *wt / open } else { 0.0 };
+            }
+        }
+        Some(std::array::from_fn(|b| {
+            at.iter().zip(&weight).map(|(c, wt)| if self.bits[*c] & (1 << b) == 0 { *wt } else { 0.0 }).sum()
+        }))
     }
 }
 

@@ -266,6 +266,7 @@ fn resolve_radiance<F: Fn(&ShadedTriangle, &Point3<f64>) -> f32 + Sync>(
     let eye = cam.centre();
     let world_from_cam = cam.world_from_cam.rotation.to_rotation_matrix();
     let (inv_fx, inv_fy) = (1.0 / cam.fx, 1.0 / cam.fy);
+    let offsets = sample_offsets();
     for (p, px) in pixels.iter().enumerate() {
         if px.centre != NO_TRIANGLE {
             centre[p] = px.centre;
@@ -276,40 +277,48 @@ fn resolve_radiance<F: Fn(&ShadedTriangle, &Point3<f64>) -> f32 + Sync>(
         }
         let (u, v) = (col as f64, row as f64);
         let (x, y) = ((u - cam.cx) * inv_fx, (v - cam.cy) * inv_fy);
-        let mut seen: [(u32, u32); SAMPLES] = [(0, 0); SAMPLES];
+        // Each triangle seen: its samples' count and the sum of their offsets from the centre.
+        let mut seen: [(u32, u32, f32, f32); SAMPLES] = [(0, 0, 0.0, 0.0); SAMPLES];
         let mut kinds = 0;
         let first = px.shade[0].to_bits();
         if px.shade.iter().all(|s| s.to_bits() == first) {
             // The common case, a pixel wholly inside one triangle (or seeing nothing).
             if first != 0 {
-                seen[0] = (first, SAMPLES as u32);
+                seen[0] = (first, SAMPLES as u32, 0.0, 0.0);
                 kinds = 1;
             }
         } else {
-            for s in px.shade {
+            for (k, s) in px.shade.iter().enumerate() {
                 let bits = s.to_bits();
                 if bits == 0 {
                     continue;
                 }
-                match seen[..kinds].iter_mut().find(|(b, _)| *b == bits) {
-                    Some((_, count)) => *count += 1,
+                match seen[..kinds].iter_mut().find(|(b, ..)| *b == bits) {
+                    Some((_, count, sx, sy)) => {
+                        *count += 1;
+                        *sx += offsets.0[k];
+                        *sy += offsets.1[k];
+                    }
                     None => {
-                        seen[kinds] = (bits, 1);
+                        seen[kinds] = (bits, 1, offsets.0[k], offsets.1[k]);
                         kinds += 1;
                     }
                 }
             }
         }
         let mut sum = 0.0f32;
-        for &(bits, count) in &seen[..kinds] {
+        for &(bits, count, sx, sy) in &seen[..kinds] {
             let drawn = &tris[bits as usize - 1];
             let t = &scene.triangles[drawn.source as usize];
-            // The pixel centre's ray meets the triangle's plane (beside the triangle, for a
-            // pixel it only partly covers: the plane's shading carries on smoothly), at the
-            // depth the plane of `1/z` over the pixels gives.
+            // Shaded where the ray through the middle of its own samples meets its plane (at
+            // the depth the plane of `1/z` over the pixels gives): for a pixel it only partly
+            // covers, on the part it shows. The pixel's centre may lie on what hides it, and the
+            // plane there under that thing, in its shadow.
+            let (du, dv) = ((sx / count as f32) as f64, (sy / count as f32) as f64);
             let [a, b, c] = drawn.inv_z;
-            let z = 1.0 / (a * u + b * v + c);
+            let z = 1.0 / (a * (u + du) + b * (v + dv) + c);
             let point = if z.is_finite() && z > 0.0 {
+                let (x, y) = (x + du * inv_fx, y + dv * inv_fy);
                 eye + world_from_cam * Vector3::new(x * z, y * z, z)
             } else {
                 t.corners[0]
