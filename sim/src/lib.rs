@@ -11,7 +11,9 @@
 //!   lamps, finishes, the arm as built; the cameras as built ([`realism::RigAsBuilt`]).
 //! - [`render`]: the CPU rasteriser: anti-aliased, shaded, noisy 8-bit grey images, with depth
 //!   and object-id maps (the ideal preset's renderer as it was), and radiance for the realistic one.
-//! - [`lighting`]: lamps with fall-off and soft shadows (shadow maps), sky, gloss, texture.
+//! - [`lighting`]: lamps with fall-off and soft shadows, sky, gloss, texture.
+//! - [`shadows`]: which lamp points a surface point sees: exact shadows on the table's plane,
+//!   shadow maps elsewhere.
 //! - [`optics`]: lens distortion (a virtual pinhole resampled), depth-dependent blur, vignetting.
 //! - [`sensor`]: shot and read noise, fixed patterns, gain, black level, response, 8 bits.
 //! - [`imaging`]: the one entry point that renders the cell by its preset.
@@ -33,6 +35,7 @@ pub mod render;
 pub mod rig;
 pub mod scene;
 pub mod sensor;
+pub mod shadows;
 pub mod shape_mesh;
 pub mod world;
 

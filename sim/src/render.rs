@@ -380,23 +380,55 @@ pub(crate) fn clip_near(tri: &[Point3<f64>; 3], near: f64) -> Vec<Point3<f64>> {
     out
 }
 
-fn setup(v: [[f64; 3]; 3], cam: &PinholeCamera, t: &ShadedTriangle, source: u32) -> Option<ScreenTriangle> {
-    let area2 = (v[1][0] - v[0][0]) * (v[2][1] - v[0][1]) - (v[2][0] - v[0][0]) * (v[1][1] - v[0][1]);
-    if area2.abs() < 1e-12 {
-        return None;
-    }
+/// The edge functions `a x + b y + c` of a triangle whose first two coordinates are pixels,
+/// positive inside whichever way it winds (`area2` is twice its signed area).
+pub(crate) fn edge_functions<const N: usize>(v: &[[f64; N]; 3], area2: f64) -> [[f64; 3]; 3] {
     let sign = area2.signum();
-    let edges = [0, 1, 2].map(|i| {
+    [0, 1, 2].map(|i| {
         let (p, q) = (v[i], v[(i + 1) % 3]);
         let (a, b) = (-(q[1] - p[1]) * sign, (q[0] - p[0]) * sign);
         [a, b, -(a * p[0] + b * p[1])]
-    });
-    // Solve the plane of 1/z through the three corners.
+    })
+}
+
+/// The plane `[p, q, r]` of the third coordinate (`1/z`) over the pixels: `p x + q y + r`.
+pub(crate) fn inv_z_plane(v: &[[f64; 3]; 3], area2: f64) -> [f64; 3] {
     let (dx1, dy1, dz1) = (v[1][0] - v[0][0], v[1][1] - v[0][1], v[1][2] - v[0][2]);
     let (dx2, dy2, dz2) = (v[2][0] - v[0][0], v[2][1] - v[0][1], v[2][2] - v[0][2]);
     let p = (dz1 * dy2 - dz2 * dy1) / area2;
     let q = (dx1 * dz2 - dx2 * dz1) / area2;
-    let r = v[0][2] - p * v[0][0] - q * v[0][1];
+    [p, q, v[0][2] - p * v[0][0] - q * v[0][1]]
+}
+
+/// Twice the signed area of a triangle in its first two coordinates.
+pub(crate) fn area2<const N: usize>(v: &[[f64; N]; 3]) -> f64 {
+    (v[1][0] - v[0][0]) * (v[2][1] - v[0][1]) - (v[2][0] - v[0][0]) * (v[1][1] - v[0][1])
+}
+
+/// The run `[lo, hi]` of whole `x` in `0..=last` where every edge function is at least 0 along
+/// row `y`, each point taken at `x + offset`; `None` where there is none.
+pub(crate) fn run_along_row(edges: &[[f64; 3]; 3], y: f64, offset: f64, last: f64) -> Option<(usize, usize)> {
+    let (mut lo, mut hi) = (0.0f64, last);
+    for [a, b, c] in edges {
+        let rest = b * y + c;
+        if *a > 0.0 {
+            lo = lo.max((-rest / a - offset).ceil());
+        } else if *a < 0.0 {
+            hi = hi.min((-rest / a - offset).floor());
+        } else if rest < 0.0 {
+            return None;
+        }
+    }
+    (lo <= hi).then_some((lo as usize, hi as usize))
+}
+
+fn setup(v: [[f64; 3]; 3], cam: &PinholeCamera, t: &ShadedTriangle, source: u32) -> Option<ScreenTriangle> {
+    let area2 = area2(&v);
+    if area2.abs() < 1e-12 {
+        return None;
+    }
+    let edges = edge_functions(&v, area2);
+    let [p, q, r] = inv_z_plane(&v, area2);
     let (minx, maxx) =
         (v.iter().map(|c| c[0]).fold(f64::MAX, f64::min), v.iter().map(|c| c[0]).fold(f64::MIN, f64::max));
     let (miny, maxy) =
