@@ -138,7 +138,7 @@ enum Command {
         /// 2D and 3D lines, the located parts, the table and bins.
         #[arg(long)]
         rerun: Option<PathBuf>,
-        /// Edgels as the blur places them, not deblurred (`CannyParams::deblur`; README,
+        /// Edgels as the blur places them, not deblurred (`CannyParams::deblur`; docs/TUNING.md,
         /// "Edgels beside narrow faces"), for comparison.
         #[arg(long)]
         no_deblur: bool,

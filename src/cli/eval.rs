@@ -36,7 +36,7 @@ pub enum EvalTarget {
         #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u16).range(1..=64))]
         slices: u16,
         /// Edgels as the blur places them, not deblurred (`CannyParams::deblur`: each edgel
-        /// beside a parallel step a few pixels away placed where its own step lies; README,
+        /// beside a parallel step a few pixels away placed where its own step lies; docs/TUNING.md,
         /// "Edgels beside narrow faces"), for comparison.
         #[arg(long)]
         no_deblur: bool,
@@ -122,7 +122,7 @@ pub enum EvalTarget {
         #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(..=super::args::MAX_FIRST_SEED))]
         seed: u64,
         /// Edgels as the blur places them, not deblurred (`CannyParams::deblur`: each edgel
-        /// beside a parallel step a few pixels away placed where its own step lies; README,
+        /// beside a parallel step a few pixels away placed where its own step lies; docs/TUNING.md,
         /// "Edgels beside narrow faces"), for comparison.
         #[arg(long)]
         no_deblur: bool,

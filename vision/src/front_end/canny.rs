@@ -20,7 +20,7 @@ pub struct CannyParams {
     /// not where the blur of both puts the peak ([`CannyWorkspace::deblur`]). A face seen
     /// nearly edge on is a strip 2-4 px wide: sigma 1 pulls its edges 0.1-0.6 px towards each
     /// other, and the other camera, which sees the strip wider or narrower, by another
-    /// amount, so their matches' disparities are off by as much. See the README's "Edgels
+    /// amount, so their matches' disparities are off by as much. See docs/TUNING.md, "Edgels
     /// beside narrow faces" for what it gains and what it costs.
     #[serde(default = "deblur_by_default")]
     pub deblur: bool,
