@@ -67,10 +67,10 @@ pub fn scene_lines(fe: &FrontEnd) -> Vec<Seg> {
     fe.lines3d.iter().map(|l| Seg::new(l.start(), l.end())).collect()
 }
 
-/// The library's models as the clutter search takes them: every part, not the flag (a tool held
-/// in the gripper, sought on its own by [`locate_flag`]).
+/// The library's models as the clutter search takes them: every part, not the calibration tools
+/// (the flag is sought on its own by [`locate_flag`]).
 pub fn part_models(library: &mesh::Library) -> Vec<MatcherModel> {
-    library.models.values().filter(|m| m.name != FLAG).map(MatcherModel::from_model).collect()
+    library.parts().map(MatcherModel::from_model).collect()
 }
 
 /// The calibration flag's model name.

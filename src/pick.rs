@@ -541,9 +541,9 @@ pub fn single_object_scenario(scn: &Scenario, model: &str) -> Scenario {
     single
 }
 
-/// Library models a pick evaluation uses: all but the calibration flag, which is a tool held
-/// edge-on in the gripper, not a part to pick (a 4 mm plate flat on the table leaves no room
-/// for fingertips under its grasp).
+/// Library models a pick evaluation uses: the parts, not the calibration tools, which are held
+/// edge-on in the gripper (a 4 mm plate flat on the table leaves no room for fingertips under
+/// its grasp).
 pub fn pickable_models(scn: &Scenario) -> Vec<String> {
-    scn.library.names().filter(|n| *n != "flag").map(str::to_string).collect()
+    scn.library.parts().map(|m| m.name.clone()).collect()
 }

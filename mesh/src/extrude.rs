@@ -61,41 +61,56 @@ impl Extrusion {
     }
 
     /// A rectangular plate whose caps carry an `nx` x `ny` checker of `albedo` and
-    /// [`CHECKER_DARK`]. The sides are split where the squares meet them, so the mesh stays
-    /// closed without T-junctions.
-    pub fn checker_mesh(&self, [nx, ny]: [u32; 2], albedo: f32) -> Result<TriMesh, String> {
+    /// [`CHECKER_DARK`], inside a plain border `margin` wide (metres; 0 for none). The square
+    /// at the pattern's `-x -y` corner is light. The sides are split where the squares meet
+    /// them, so the mesh stays closed without T-junctions.
+    pub fn checker_mesh(&self, [nx, ny]: [u32; 2], albedo: f32, margin: f64) -> Result<TriMesh, String> {
         let (lo, hi) = self.rectangle()?;
-        let grid = |i: u32, j: u32| {
-            Point2::new(lo.x + (hi.x - lo.x) * i as f64 / nx as f64, lo.y + (hi.y - lo.y) * j as f64 / ny as f64)
+        if !(margin >= 0.0 && 2.0 * margin < (hi.x - lo.x).min(hi.y - lo.y)) {
+            return Err(format!("the checker's margin must leave room for the squares, got {margin} m"));
+        }
+        let lines = |lo: f64, hi: f64, n: u32| -> Vec<f64> {
+            let inner = (0..=n).map(|i| lo + margin + (hi - lo - 2.0 * margin) * i as f64 / n as f64);
+            if margin > 0.0 {
+                std::iter::once(lo).chain(inner).chain(std::iter::once(hi)).collect()
+            } else {
+                inner.collect()
+            }
         };
-        let cols = nx + 1;
-        let per_cap = cols * (ny + 1);
+        let (xs, ys) = (lines(lo.x, hi.x, nx), lines(lo.y, hi.y, ny));
+        let border = u32::from(margin > 0.0);
+        let (gx, gy) = (xs.len() as u32 - 1, ys.len() as u32 - 1);
+        let cols = gx + 1;
+        let per_cap = cols * (gy + 1);
         let index = |i: u32, j: u32, top: bool| j * cols + i + if top { per_cap } else { 0 };
         let mut vertices = Vec::with_capacity(2 * per_cap as usize);
         for top in [false, true] {
-            for j in 0..=ny {
-                for i in 0..=nx {
-                    vertices.push(self.lift(grid(i, j), top));
+            for y in &ys {
+                for x in &xs {
+                    vertices.push(self.lift(Point2::new(*x, *y), top));
                 }
             }
         }
+        let shade_of = |i: u32, j: u32| {
+            let inside = (border..gx - border).contains(&i) && (border..gy - border).contains(&j);
+            if !inside || (i + j - 2 * border).is_multiple_of(2) { albedo } else { CHECKER_DARK }
+        };
         let (mut triangles, mut shade) = (Vec::new(), Vec::new());
-        for j in 0..ny {
-            for i in 0..nx {
-                let a = if (i + j) % 2 == 0 { albedo } else { CHECKER_DARK };
+        for j in 0..gy {
+            for i in 0..gx {
                 let [p, q, r, s] = [(i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)];
                 let t = |(x, y): (u32, u32)| index(x, y, true);
                 let b = |(x, y): (u32, u32)| index(x, y, false);
                 triangles.extend([[t(p), t(q), t(r)], [t(p), t(r), t(s)], [b(p), b(r), b(q)], [b(p), b(s), b(r)]]);
-                shade.extend([a; 4]);
+                shade.extend([shade_of(i, j); 4]);
             }
         }
         // The boundary ring of the grid, counter-clockwise.
-        let ring: Vec<(u32, u32)> = (0..nx)
+        let ring: Vec<(u32, u32)> = (0..gx)
             .map(|i| (i, 0))
-            .chain((0..ny).map(|j| (nx, j)))
-            .chain((1..=nx).rev().map(|i| (i, ny)))
-            .chain((1..=ny).rev().map(|j| (0, j)))
+            .chain((0..gy).map(|j| (gx, j)))
+            .chain((1..=gx).rev().map(|i| (i, gy)))
+            .chain((1..=gy).rev().map(|j| (0, j)))
             .collect();
         let sides = side_quads(
             ring.len() as u32,
@@ -154,15 +169,31 @@ mod tests {
     #[test]
     fn checker_plate_is_closed_and_patterned() {
         let e = Extrusion::new(square(0.06), 0.004).unwrap();
-        let m = e.checker_mesh([4, 3], 0.9).unwrap();
+        let m = e.checker_mesh([4, 3], 0.9, 0.0).unwrap();
         assert!(m.is_closed());
         let dark = m.albedo.iter().filter(|&&a| a == CHECKER_DARK).count();
         assert_eq!(dark, 2 * 2 * 6, "6 dark squares per cap, 2 triangles each, 2 caps");
     }
 
     #[test]
+    fn a_checker_s_margin_is_plain_and_its_squares_even() {
+        let e = Extrusion::new(square(0.1), 0.004).unwrap();
+        let m = e.checker_mesh([4, 4], 0.9, 0.01).unwrap();
+        assert!(m.is_closed());
+        let dark: Vec<usize> = (0..m.triangles.len()).filter(|&t| m.albedo[t] == CHECKER_DARK).collect();
+        assert_eq!(dark.len(), 2 * 2 * 8, "8 dark squares per cap, 2 triangles each, 2 caps");
+        for t in dark {
+            for &v in &m.triangles[t] {
+                let p = m.vertices[v as usize];
+                assert!(p.x.abs() <= 0.04 + 1e-12 && p.y.abs() <= 0.04 + 1e-12, "a dark square in the margin: {p}");
+            }
+        }
+        assert!(e.checker_mesh([4, 4], 0.9, 0.05).is_err(), "no room for the squares");
+    }
+
+    #[test]
     fn checker_needs_a_rectangle() {
         let tri = vec![Point2::new(0.0, 0.0), Point2::new(1.0, 0.0), Point2::new(0.0, 1.0)];
-        assert!(Extrusion::new(tri, 0.1).unwrap().checker_mesh([2, 2], 0.9).is_err());
+        assert!(Extrusion::new(tri, 0.1).unwrap().checker_mesh([2, 2], 0.9, 0.0).is_err());
     }
 }

@@ -9,6 +9,11 @@ pub fn default_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("models")
 }
 
+/// The models that are tools an operator hands to the arm for calibration, not parts: the
+/// hand-eye flag and the camera calibration board. Scenes never hold them and the part search
+/// never seeks them.
+pub const TOOLS: [&str; 2] = ["board", "flag"];
+
 /// Built models by name.
 #[derive(Debug, Clone, Default)]
 pub struct Library {
@@ -65,6 +70,11 @@ impl Library {
     pub fn names(&self) -> impl Iterator<Item = &str> {
         self.models.keys().map(String::as_str)
     }
+
+    /// The parts: every model but the [`TOOLS`].
+    pub fn parts(&self) -> impl Iterator<Item = &Model> {
+        self.models.values().filter(|m| !TOOLS.contains(&m.name.as_str()))
+    }
 }
 
 #[cfg(test)]
@@ -73,7 +83,8 @@ mod tests {
     use crate::model::Collision;
     use nalgebra::{Point3, Vector3};
 
-    const LIBRARY: [&str; 8] = ["block", "flag", "hex_prism", "l_bracket", "t_piece", "u_channel", "wedge", "widget"];
+    const LIBRARY: [&str; 9] =
+        ["block", "board", "flag", "hex_prism", "l_bracket", "t_piece", "u_channel", "wedge", "widget"];
 
     /// Distances along the ray `o + t d` at which it crosses the mesh (Moller-Trumbore).
     fn crossings(mesh: &crate::TriMesh, o: Point3<f64>, d: Vector3<f64>) -> Vec<f64> {
@@ -91,7 +102,11 @@ mod tests {
         for (name, m) in &lib.models {
             assert!(m.mesh.is_closed(), "{name} is not closed");
             let size = m.extent().max() * 1e3;
-            let expected = if name == "flag" { 40.0..=120.0 } else { 30.0..=120.0 };
+            let expected = match name.as_str() {
+                "flag" => 40.0..=120.0,
+                "board" => 200.0..=240.0,
+                _ => 30.0..=120.0,
+            };
             assert!(expected.contains(&size), "{name} is {size} mm across");
             assert!(m.mass.mass > 0.0 && m.mass.inertia.symmetric_eigenvalues().min() > 0.0);
             assert!(!m.grasps.is_empty(), "{name} has no grasp");

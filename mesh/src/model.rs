@@ -68,6 +68,9 @@ pub enum ShapeSpec {
         thickness_mm: f64,
         /// Checker squares `[nx, ny]` on both caps (rectangular profiles only).
         checker: Option<[u32; 2]>,
+        /// A plain border around the checker, millimetres (a calibration board's quiet zone).
+        #[serde(default)]
+        checker_margin_mm: f64,
     },
     /// A closed Wavefront OBJ mesh, path relative to the model file, coordinates in millimetres.
     Obj { file: String },
@@ -136,11 +139,13 @@ impl Model {
         }
         let albedo = spec.albedo as f32;
         let (mesh, collision) = match &spec.shape {
-            ShapeSpec::Extrusion { profile_mm, thickness_mm, checker } => {
+            ShapeSpec::Extrusion { profile_mm, thickness_mm, checker, checker_margin_mm } => {
                 let profile = profile_mm.iter().map(|&[x, y]| Point2::new(x * MM, y * MM)).collect();
                 let ext = Extrusion::new(profile, thickness_mm * MM).map_err(|e| format!("shape: {e}"))?;
                 let mesh = match checker {
-                    Some(n) => ext.checker_mesh(*n, albedo).map_err(|e| format!("shape.checker: {e}"))?,
+                    Some(n) => ext
+                        .checker_mesh(*n, albedo, checker_margin_mm * MM)
+                        .map_err(|e| format!("shape.checker: {e}"))?,
                     None => ext.mesh(albedo),
                 };
                 (mesh, Collision::ConvexPieces(ext.convex_pieces()))

@@ -155,7 +155,7 @@ mod tests {
     #[test]
     fn a_checker_s_markings_are_its_grid_lines_whole() {
         let plate = [[-0.03, -0.02], [0.03, -0.02], [0.03, 0.02], [-0.03, 0.02]].map(|[x, y]| Point2::new(x, y));
-        let m = Extrusion::new(plate.to_vec(), 0.004).unwrap().checker_mesh([6, 4], 0.9).unwrap();
+        let m = Extrusion::new(plate.to_vec(), 0.004).unwrap().checker_mesh([6, 4], 0.9, 0.0).unwrap();
         let marks = marking_edges(&m, FEATURE_ANGLE_DEG);
         assert_eq!(marks.len(), 2 * (5 + 3), "{marks:?}");
         let across = marks.iter().filter(|s| (s.length() - 0.04).abs() < 1e-12).count();
@@ -177,7 +177,7 @@ mod tests {
     fn checker_plate_edges_merge_into_twelve() {
         let sq = [(-0.03, -0.02), (0.03, -0.02), (0.03, 0.02), (-0.03, 0.02)];
         let plate = Extrusion::new(sq.map(|(x, y)| Point2::new(x, y)).to_vec(), 0.004).unwrap();
-        let m = plate.checker_mesh([4, 3], 0.9).unwrap();
+        let m = plate.checker_mesh([4, 3], 0.9, 0.0).unwrap();
         assert_eq!(feature_edges(&m, FEATURE_ANGLE_DEG).len(), 12);
     }
 

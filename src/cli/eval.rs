@@ -265,12 +265,11 @@ pub fn run_pipeline(
     Pipeline { scene, left: l, right: r, front_end, settled, cams }
 }
 
-/// The library's models as the matcher sees them (the calibration flag is not sought).
+/// The library's models as the matcher sees them (the calibration tools are not sought).
 pub fn matcher_models(library: &mesh::Library, only: Option<&[String]>) -> Vec<vision::matcher::MatcherModel> {
     library
-        .models
-        .values()
-        .filter(|m| m.name != "flag" && only.is_none_or(|o| o.contains(&m.name)))
+        .parts()
+        .filter(|m| only.is_none_or(|o| o.contains(&m.name)))
         .map(vision::matcher::MatcherModel::from_model)
         .collect()
 }
