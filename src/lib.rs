@@ -13,11 +13,14 @@
 //! - [`server`]: the robot server: the simulated cell behind a TCP socket.
 //! - [`calibrate`]: hand-eye calibration through the robot server: the flag carried to poses,
 //!   seen, located, and the sightings solved.
+//! - [`calibrate_cameras`]: camera calibration through the robot server: the board carried
+//!   to poses, its corners found in both images, the views solved (`camera_calib`).
 //! - [`client`]: a typed client of the robot server.
 //! - [`protocol`]: protocol v1 between the MARVIN side and the robot server, as typed
 //!   requests and replies shared by both.
 
 pub mod calibrate;
+pub mod calibrate_cameras;
 pub mod client;
 pub mod eval;
 pub mod perception;

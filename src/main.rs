@@ -3,7 +3,7 @@
 
 mod cli;
 
-use cli::{bench, calibrate, edges, eval, locate, pick, render, run, serve, stereo};
+use cli::{bench, calibrate, calibrate_cameras, edges, eval, locate, pick, render, run, serve, stereo};
 
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
@@ -204,8 +204,13 @@ enum Command {
     /// Writes FILE (`cam_from_base`, `gripper_from_flag`, covariance, residuals, sightings used)
     /// for `marvin serve --hand-eye`. With --json prints the sightings, the result, and (with a
     /// server started here) the truth and the error against it, computed after the solve.
+    #[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
     Calibrate {
-        world: PathBuf,
+        /// `marvin calibrate cameras WORLD`: the cameras (see its --help).
+        #[command(subcommand)]
+        what: Option<CalibrateWhat>,
+        #[arg(required = true)]
+        world: Option<PathBuf>,
         /// Poses visited.
         #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u16).range(3..=500))]
         poses: u16,
@@ -239,6 +244,41 @@ enum Command {
     },
 }
 
+/// What `marvin calibrate` calibrates besides the hand-eye transform.
+#[derive(Subcommand, Debug)]
+enum CalibrateWhat {
+    /// Camera calibration, as TINA did it with its tile: the arm holds the calibration board
+    /// (10 x 7 squares of 18 mm) at tilted poses over the table, its corners are found in both
+    /// images, and one least-squares adjustment solves both cameras' intrinsics and lens
+    /// distortion and the right camera's pose in the left's. Through the robot server: one
+    /// started here on loopback for the world, or the one at --connect.
+    ///
+    /// Writes OUT/cameras.json (with sigmas and covariance) and OUT/left.yaml, OUT/right.yaml
+    /// (ROS camera_info, plumb_bob). With a server started here, prints the error against the
+    /// cameras as built, computed after the solve.
+    Cameras {
+        world: PathBuf,
+        /// Board poses visited.
+        #[arg(long, default_value_t = 24, value_parser = clap::value_parser!(u16).range(3..=500))]
+        poses: u16,
+        /// Seed of the scene and the poses (default: the world file's).
+        #[arg(long)]
+        seed: Option<u64>,
+        /// A running robot server (`marvin serve`) instead of one started here.
+        #[arg(long)]
+        connect: Option<String>,
+        /// Folder for cameras.json, left.yaml and right.yaml.
+        #[arg(long, default_value = "out/cameras")]
+        out: PathBuf,
+        #[arg(long)]
+        json: bool,
+        /// Write every view as lossless PNGs (viewNN_left.png, viewNN_right.png) with the
+        /// board's geometry and the corners found in views.json, for any other tool.
+        #[arg(long)]
+        save_images: Option<PathBuf>,
+    },
+}
+
 fn main() -> std::process::ExitCode {
     let result = match Cli::parse().command {
         Command::Run { world, seed, connect, hand_eye, max_cycles, json, rerun, rerun_connect } => {
@@ -266,7 +306,20 @@ fn main() -> std::process::ExitCode {
         Command::Serve { world, seed, listen, token_file, hand_eye, truth, idle_timeout_s } => {
             serve::run(serve::ServeArgs { world, seed, listen, token_file, hand_eye, truth, idle_timeout_s })
         }
-        Command::Calibrate { world, poses, seed, connect, out, json, rerun } => {
+        Command::Calibrate {
+            what: Some(CalibrateWhat::Cameras { world, poses, seed, connect, out, json, save_images }),
+            ..
+        } => calibrate_cameras::run(calibrate_cameras::CamerasArgs {
+            world,
+            poses: poses as usize,
+            seed,
+            connect,
+            out,
+            json,
+            save_images,
+        }),
+        Command::Calibrate { what: None, world, poses, seed, connect, out, json, rerun } => {
+            let world = world.expect("clap requires the world without a subcommand");
             calibrate::run(calibrate::CalibrateArgs { world, poses: poses as usize, seed, connect, out, json, rerun })
         }
         Command::Eval { what } => eval::run(what),

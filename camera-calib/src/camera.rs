@@ -70,6 +70,24 @@ impl Intrinsics {
     }
 }
 
+/// The largest difference over an image of `size` (a 17 x 17 grid of pixels) between where
+/// `got`'s distortion and `want`'s put each pixel's ray, both with `want`'s camera matrix: how
+/// far apart the two lens models are, whatever their focal lengths and centres.
+pub fn distortion_difference_px(got: &Intrinsics, want: &Intrinsics, size: [u32; 2]) -> f64 {
+    let with_true_k = Intrinsics { distortion: got.distortion, ..*want };
+    let mut worst: f64 = 0.0;
+    for j in 0..=16 {
+        for i in 0..=16 {
+            let (u, v) = (i as f64 * (size[0] - 1) as f64 / 16.0, j as f64 * (size[1] - 1) as f64 / 16.0);
+            let Some((x, y)) = want.normalised(u, v) else { continue };
+            if let Some(p) = with_true_k.project(&Point3::new(x, y, 1.0)) {
+                worst = worst.max((p.x - u).hypot(p.y - v));
+            }
+        }
+    }
+    worst
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

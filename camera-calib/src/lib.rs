@@ -12,14 +12,15 @@
 //! - [`adjust`]: the joint Levenberg-Marquardt adjustment with a robust (Huber) loss, and the
 //!   parameters' covariance.
 //! - [`solve`]: the whole routine for a stereo pair, per-view reprojection RMS, sigmas.
-//! - [`rectify`]: the stereo rectification (`R`, `P`) the ROS files carry.
 //! - [`file`]: the calibration files: the project's JSON (with covariances) and a ROS
-//!   `camera_info` YAML per camera.
+//!   `camera_info` YAML per camera, with the stereo rectification (`R`, `P`) they carry.
 
 pub mod adjust;
 pub mod board;
 pub mod camera;
 pub mod checks;
+pub mod detect;
+pub mod file;
 pub mod solve;
 pub mod zhang;
 

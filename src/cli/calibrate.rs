@@ -67,14 +67,19 @@ impl Cell {
     }
 
     pub fn connect(&self) -> anyhow::Result<Client> {
+        Ok(self.connect_greeted()?.0)
+    }
+
+    /// A greeted client, and the server's greeting.
+    pub fn connect_greeted(&self) -> anyhow::Result<(Client, marvin::protocol::HelloReply)> {
         let addr = match self {
             Cell::Remote(a) => a.clone(),
             Cell::Local(s) => s.addr().to_string(),
         };
         let mut client = Client::connect(&addr, Duration::from_secs(10))?;
         let token = std::env::var("MARVIN_TOKEN").ok();
-        client.hello(token.as_deref())?;
-        Ok(client)
+        let hello = client.hello(token.as_deref())?;
+        Ok((client, hello))
     }
 
     pub fn is_local(&self) -> bool {

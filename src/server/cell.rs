@@ -158,9 +158,9 @@ const SEATED_TOLERANCE_M: f64 = 1e-4;
 /// operator lets go, before the arm moves.
 const TOOL_SEAT_S: f64 = 0.15;
 
-/// The tools an operator can hand in: the calibration flag (`urdf/flag_tool.urdf`, next to the
-/// arm's URDF; the library model `flag`).
-const TOOLS: [(&str, &str); 1] = [("flag", "flag_tool.urdf")];
+/// The tools an operator can hand in, each a library model with its URDF next to the arm's: the
+/// camera calibration board (`urdf/board_tool.urdf`) and the hand-eye flag (`urdf/flag_tool.urdf`).
+const TOOLS: [(&str, &str); 2] = [("board", "board_tool.urdf"), ("flag", "flag_tool.urdf")];
 
 impl<'a> SimCell<'a> {
     fn new(

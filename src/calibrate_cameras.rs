@@ -1,0 +1,214 @@
+//! Camera calibration through the robot server, as a cell's operator does it: the board is
+//! handed into the gripper (`take_tool`), the arm carries it to poses over the part of the
+//! table the cameras see, each turned towards the cameras and tilted (as Zhang needs); at each
+//! the cameras capture and the board's corners are found in both images. The views are solved
+//! by [`camera_calib`]. Nothing here reads the capture's camera model or the simulation's
+//! truth.
+
+use crate::client::Client;
+use crate::protocol::{Frame, MoveTarget, WirePose};
+use anyhow::{Context, anyhow};
+use camera_calib::detect::{Dropped, detect};
+use camera_calib::{Board, Options, StereoSolution, ViewCorners};
+use image::GrayImage;
+use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3};
+use rand::rngs::StdRng;
+use rand::{RngExt, SeedableRng};
+
+/// The board's library model name.
+pub const BOARD: &str = "board";
+
+/// How a camera calibration runs.
+#[derive(Debug, Clone)]
+pub struct CameraCalibConfig {
+    /// Poses visited.
+    pub poses: usize,
+    /// Seed of the poses.
+    pub seed: u64,
+    /// Fraction of the joints' speed limits.
+    pub speed: f64,
+}
+
+impl Default for CameraCalibConfig {
+    fn default() -> Self {
+        CameraCalibConfig { poses: 24, seed: 1, speed: 0.3 }
+    }
+}
+
+/// One pose visited: whether the arm got there, and what each camera made of its image.
+#[derive(Debug, Clone)]
+pub struct ViewRecord {
+    pub reached: bool,
+    /// `found`, or why not (the arm's refusal, or each camera's reason for dropping the view).
+    pub note: String,
+    pub corners: ViewCorners,
+    /// The images, kept for `--save-images`.
+    pub images: Option<(GrayImage, GrayImage)>,
+}
+
+/// A camera calibration's outcome.
+#[derive(Debug, Clone)]
+pub struct CameraCalibration {
+    pub views: Vec<ViewRecord>,
+    pub solution: StereoSolution,
+    pub size: [u32; 2],
+}
+
+/// Where the board's centre is carried, in the base frame (metres; z above the table's top):
+/// over the table's middle, where the cell's layout puts the cameras' view.
+const REGION_X: (f64, f64) = (0.16, 0.40);
+const REGION_Y: (f64, f64) = (-0.16, 0.16);
+const REGION_Z: (f64, f64) = (0.10, 0.22);
+/// Where the cameras are, roughly, seen from the base (the cell's layout: in front of the
+/// robot, up high): the board's face is turned towards this point, then tilted.
+const CAMERAS_BASE: [f64; 3] = [0.97, 0.0, 0.58];
+/// How far the jaws may close beyond where they held the board before it counts as lost (mm).
+const JAW_SLACK_MM: f64 = 1.0;
+/// Where the gripper takes the board (base frame; z above the table's top), pointing down.
+const HANDOVER_BASE: [f64; 3] = [0.25, 0.0, 0.40];
+/// The tilt from facing the cameras (degrees) and the turn in the board's plane.
+const TILT_DEG: (f64, f64) = (15.0, 40.0);
+const TURN_DEG: f64 = 30.0;
+/// The board's lowest point stays this far above the table (metres).
+const TABLE_CLEARANCE_M: f64 = 0.03;
+
+/// The board poses (`base_from_board`) a calibration visits: centres over the region, faces
+/// turned to the cameras and tilted in every direction, the held edge up.
+pub fn board_poses(n: usize, seed: u64, table_top: f64, board: &mesh::Model) -> Vec<Isometry3<f64>> {
+    let mut rng = StdRng::seed_from_u64(seed);
+    let half = board.extent() / 2.0;
+    let mut out = Vec::new();
+    while out.len() < n {
+        let centre = Point3::new(
+            rng.random_range(REGION_X.0..REGION_X.1),
+            rng.random_range(REGION_Y.0..REGION_Y.1),
+            table_top + rng.random_range(REGION_Z.0..REGION_Z.1),
+        );
+        let to_cameras = (Point3::from(CAMERAS_BASE) - centre).normalize();
+        let direction = rng.random_range(0.0..std::f64::consts::TAU);
+        let tilt = rng.random_range(TILT_DEG.0..TILT_DEG.1).to_radians();
+        let across = Unit::new_normalize(to_cameras.cross(&Vector3::z()));
+        let up_in_face = Unit::new_normalize(across.cross(&to_cameras));
+        let axis = Unit::new_normalize(across.as_ref() * direction.cos() + up_in_face.as_ref() * direction.sin());
+        let normal = UnitQuaternion::from_axis_angle(&axis, tilt) * to_cameras;
+        // The board's x (from the held edge into the plate) points down the face.
+        let down = (-Vector3::z() - normal * (-Vector3::z()).dot(&normal)).normalize();
+        let turn = rng.random_range(-TURN_DEG..TURN_DEG).to_radians();
+        let x = UnitQuaternion::from_axis_angle(&Unit::new_normalize(normal), turn) * down;
+        let r = Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[x, normal.cross(&x), normal]));
+        let pose = Isometry3::from_parts(Translation3::from(centre.coords), UnitQuaternion::from_rotation_matrix(&r));
+        let lowest = [-1.0, 1.0]
+            .iter()
+            .flat_map(|&a| [-1.0, 1.0].map(|b| pose * Point3::new(a * half.x, b * half.y, 0.0)))
+            .map(|p| p.z)
+            .fold(f64::MAX, f64::min);
+        if lowest > table_top + TABLE_CLEARANCE_M {
+            out.push(pose);
+        }
+    }
+    out
+}
+
+/// Runs a camera calibration on a connected (and greeted) robot server whose table top is at
+/// `table_top` in the base frame (its `hello`); `progress` hears of each pose.
+pub fn calibrate_cameras(
+    client: &mut Client,
+    table_top: f64,
+    library: &mesh::Library,
+    config: &CameraCalibConfig,
+    keep_images: bool,
+    progress: &mut dyn FnMut(&str),
+) -> anyhow::Result<CameraCalibration> {
+    let model = library.get(BOARD).ok_or_else(|| anyhow!("the model library has no `{BOARD}`"))?;
+    let grasp = model.grasps.first().ok_or_else(|| anyhow!("the board model has no grasp"))?;
+    let board_from_gripper = grasp.model_from_gripper;
+    if client.status()?.holding.as_deref() != Some(BOARD) {
+        // The board hangs 21 cm below the jaws: it is handed in with the gripper up high.
+        let handover = Isometry3::from_parts(
+            Translation3::new(HANDOVER_BASE[0], HANDOVER_BASE[1], table_top + HANDOVER_BASE[2]),
+            UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[
+                Vector3::y(),
+                Vector3::x(),
+                -Vector3::z(),
+            ]))),
+        );
+        let request = MoveTarget {
+            tool: Some(WirePose::new(Some(Frame::Base), &handover)),
+            joints: None,
+            speed: Some(config.speed),
+        };
+        client.move_to(request).context("moving the gripper up to take the board")?;
+        client.take_tool(BOARD).context("handing the board into the gripper")?;
+    }
+    let held_mm = client.status()?.gripper_opening_mm;
+    let board = Board::LIBRARY;
+    let mut views = Vec::new();
+    let mut size = [0, 0];
+    for (k, base_from_board) in board_poses(config.poses, config.seed, table_top, model).iter().enumerate() {
+        let target = base_from_board * board_from_gripper;
+        let record = visit(client, &board, &target, config.speed, keep_images, &mut size)?;
+        let opening = client.status()?.gripper_opening_mm;
+        if opening < held_mm - JAW_SLACK_MM {
+            return Err(anyhow!(
+                "the board left the jaws on the way to pose {} (they closed from {held_mm:.2} to {opening:.2} mm); \
+                 the cell's physics does not yet hold a board this size through the arm's motions",
+                k + 1
+            ));
+        }
+        progress(&format!("pose {}/{}: {}", k + 1, config.poses, record.note));
+        views.push(record);
+    }
+    client.stow_tool().context("taking the board out of the gripper")?;
+    client.home()?;
+    let corners: Vec<ViewCorners> = views.iter().map(|v| v.corners.clone()).collect();
+    let solution = camera_calib::calibrate_stereo(&board, size, &corners, &Options::default())
+        .with_context(|| format!("{} of {} poses gave the whole board in both images", both(&views), views.len()))?;
+    Ok(CameraCalibration { views, solution, size })
+}
+
+fn both(views: &[ViewRecord]) -> usize {
+    views.iter().filter(|v| v.corners.left.is_some() && v.corners.right.is_some()).count()
+}
+
+/// Moves to one pose, captures and finds the board in both images.
+fn visit(
+    client: &mut Client,
+    board: &Board,
+    target: &Isometry3<f64>,
+    speed: f64,
+    keep_images: bool,
+    size: &mut [u32; 2],
+) -> anyhow::Result<ViewRecord> {
+    let mut record = ViewRecord { reached: false, note: String::new(), corners: ViewCorners::default(), images: None };
+    let request = MoveTarget { tool: Some(WirePose::new(Some(Frame::Base), target)), joints: None, speed: Some(speed) };
+    match client.move_to(request) {
+        Ok(_) => record.reached = true,
+        Err(e) if e.wire().is_some() => {
+            record.note = format!("not visited: {}", e.wire().expect("a server error"));
+            return Ok(record);
+        }
+        Err(e) => return Err(e.into()),
+    }
+    let capture = client.capture()?;
+    let left = decode(&capture.left_png_b64).context("the left image")?;
+    let right = decode(&capture.right_png_b64).context("the right image")?;
+    *size = [left.width(), left.height()];
+    let (l, r) = (detect(&left, board), detect(&right, board));
+    let say = |d: &Result<_, Dropped>| match d {
+        Ok(_) => "found".to_string(),
+        Err(why) => why.to_string(),
+    };
+    record.note =
+        if l.is_ok() && r.is_ok() { "found in both".into() } else { format!("left {}; right {}", say(&l), say(&r)) };
+    record.corners = ViewCorners { left: l.ok(), right: r.ok() };
+    if keep_images {
+        record.images = Some((left, right));
+    }
+    Ok(record)
+}
+
+fn decode(b64: &str) -> anyhow::Result<GrayImage> {
+    use base64::Engine;
+    let png = base64::engine::general_purpose::STANDARD.decode(b64).context("not base64")?;
+    Ok(image::load_from_memory_with_format(&png, image::ImageFormat::Png).context("not a PNG")?.into_luma8())
+}
