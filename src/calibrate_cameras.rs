@@ -25,13 +25,14 @@ pub struct CameraCalibConfig {
     pub poses: usize,
     /// Seed of the poses.
     pub seed: u64,
-    /// Fraction of the joints' speed limits.
+    /// Fraction of the joints' speed limits: slow, as for the flag, so that the board does not
+    /// swing out of the jaws.
     pub speed: f64,
 }
 
 impl Default for CameraCalibConfig {
     fn default() -> Self {
-        CameraCalibConfig { poses: 24, seed: 1, speed: 0.3 }
+        CameraCalibConfig { poses: 24, seed: 1, speed: 0.15 }
     }
 }
 
@@ -46,6 +47,13 @@ pub struct ViewRecord {
     pub images: Option<(GrayImage, GrayImage)>,
 }
 
+impl ViewRecord {
+    /// A pose given up: the board left the jaws on the way to it twice.
+    fn lost() -> ViewRecord {
+        ViewRecord { reached: false, note: "given up".into(), corners: ViewCorners::default(), images: None }
+    }
+}
+
 /// A camera calibration's outcome.
 #[derive(Debug, Clone)]
 pub struct CameraCalibration {
@@ -55,22 +63,28 @@ pub struct CameraCalibration {
 }
 
 /// Where the board's centre is carried, in the base frame (metres; z above the table's top):
-/// over the table's middle, where the cell's layout puts the cameras' view.
-const REGION_X: (f64, f64) = (0.16, 0.40);
+/// over the table's front half, towards the cameras, where a board raised this high is imaged
+/// near the middle of the pictures (over the table's centre, x 0.16-0.40, its top was cut off in
+/// most views). Chosen on tuning seeds 3 and 4.
+const REGION_X: (f64, f64) = (0.32, 0.50);
 const REGION_Y: (f64, f64) = (-0.16, 0.16);
-const REGION_Z: (f64, f64) = (0.10, 0.22);
+const REGION_Z: (f64, f64) = (0.13, 0.22);
 /// Where the cameras are, roughly, seen from the base (the cell's layout: in front of the
 /// robot, up high): the board's face is turned towards this point, then tilted.
 const CAMERAS_BASE: [f64; 3] = [0.97, 0.0, 0.58];
-/// How far the jaws may close beyond where they held the board before it counts as lost (mm).
-const JAW_SLACK_MM: f64 = 1.0;
-/// Where the gripper takes the board (base frame; z above the table's top), pointing down.
-const HANDOVER_BASE: [f64; 3] = [0.25, 0.0, 0.40];
 /// The tilt from facing the cameras (degrees) and the turn in the board's plane.
 const TILT_DEG: (f64, f64) = (15.0, 40.0);
 const TURN_DEG: f64 = 30.0;
-/// The board's lowest point stays this far above the table (metres).
-const TABLE_CLEARANCE_M: f64 = 0.03;
+/// The board's lowest point stays this far above the table (metres). The robot does not know
+/// where the parts lie, so the board is kept above the tallest of them: swung lower (3 cm), it
+/// struck parts on the way between poses and was knocked out of the jaws (seeds 3, 4).
+const TABLE_CLEARANCE_M: f64 = 0.07;
+/// How far the jaws may close beyond where they held the board before it counts as lost (mm).
+const JAW_SLACK_MM: f64 = 1.0;
+/// How many times the board may leave the jaws in one calibration before it is given up.
+const MAX_LOSSES: usize = 4;
+/// Where the gripper takes the board (base frame; z above the table's top), pointing down.
+const HANDOVER_BASE: [f64; 3] = [0.25, 0.0, 0.40];
 
 /// The board poses (`base_from_board`) a calibration visits: centres over the region, faces
 /// turned to the cameras and tilted in every direction, the held edge up.
@@ -123,37 +137,35 @@ pub fn calibrate_cameras(
     let grasp = model.grasps.first().ok_or_else(|| anyhow!("the board model has no grasp"))?;
     let board_from_gripper = grasp.model_from_gripper;
     if client.status()?.holding.as_deref() != Some(BOARD) {
-        // The board hangs 21 cm below the jaws: it is handed in with the gripper up high.
-        let handover = Isometry3::from_parts(
-            Translation3::new(HANDOVER_BASE[0], HANDOVER_BASE[1], table_top + HANDOVER_BASE[2]),
-            UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[
-                Vector3::y(),
-                Vector3::x(),
-                -Vector3::z(),
-            ]))),
-        );
-        let request = MoveTarget {
-            tool: Some(WirePose::new(Some(Frame::Base), &handover)),
-            joints: None,
-            speed: Some(config.speed),
-        };
-        client.move_to(request).context("moving the gripper up to take the board")?;
-        client.take_tool(BOARD).context("handing the board into the gripper")?;
+        hand_in(client, table_top, config.speed)?;
     }
     let held_mm = client.status()?.gripper_opening_mm;
     let board = Board::LIBRARY;
     let mut views = Vec::new();
     let mut size = [0, 0];
+    let mut losses = 0;
     for (k, base_from_board) in board_poses(config.poses, config.seed, table_top, model).iter().enumerate() {
         let target = base_from_board * board_from_gripper;
-        let record = visit(client, &board, &target, config.speed, keep_images, &mut size)?;
-        let opening = client.status()?.gripper_opening_mm;
-        if opening < held_mm - JAW_SLACK_MM {
-            return Err(anyhow!(
-                "the board left the jaws on the way to pose {} (they closed from {held_mm:.2} to {opening:.2} mm); \
-                 the cell's physics does not yet hold a board this size through the arm's motions",
-                k + 1
-            ));
+        let mut record = visit(client, &board, &target, config.speed, keep_images, &mut size)?;
+        // A board knocked out of the jaws on the way is handed in again, as an operator would,
+        // and the pose tried once more; its views are solved for one by one, so where it sits
+        // in the jaws does not matter.
+        for attempt in 0..2 {
+            if client.status()?.gripper_opening_mm >= held_mm - JAW_SLACK_MM {
+                break;
+            }
+            losses += 1;
+            if losses > MAX_LOSSES {
+                return Err(anyhow!("the board left the jaws {losses} times; the last on the way to pose {}", k + 1));
+            }
+            client.stow_tool().context("taking back the board that left the jaws")?;
+            hand_in(client, table_top, config.speed)?;
+            record = if attempt == 0 {
+                visit(client, &board, &target, config.speed, keep_images, &mut size)?
+            } else {
+                ViewRecord::lost()
+            };
+            record.note = format!("{} (the board left the jaws on the way and was handed in again)", record.note);
         }
         progress(&format!("pose {}/{}: {}", k + 1, config.poses, record.note));
         views.push(record);
@@ -164,6 +176,24 @@ pub fn calibrate_cameras(
     let solution = camera_calib::calibrate_stereo(&board, size, &corners, &Options::default())
         .with_context(|| format!("{} of {} poses gave the whole board in both images", both(&views), views.len()))?;
     Ok(CameraCalibration { views, solution, size })
+}
+
+/// Moves the gripper up to where the board is handed in, pointing down, and takes the board.
+fn hand_in(client: &mut Client, table_top: f64, speed: f64) -> anyhow::Result<()> {
+    // The board hangs 16 cm below the jaws: it is handed in with the gripper up high.
+    let handover = Isometry3::from_parts(
+        Translation3::new(HANDOVER_BASE[0], HANDOVER_BASE[1], table_top + HANDOVER_BASE[2]),
+        UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[
+            Vector3::y(),
+            Vector3::x(),
+            -Vector3::z(),
+        ]))),
+    );
+    let request =
+        MoveTarget { tool: Some(WirePose::new(Some(Frame::Base), &handover)), joints: None, speed: Some(speed) };
+    client.move_to(request).context("moving the gripper up to take the board")?;
+    client.take_tool(BOARD).context("handing the board into the gripper")?;
+    Ok(())
 }
 
 fn both(views: &[ViewRecord]) -> usize {

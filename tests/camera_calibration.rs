@@ -130,3 +130,48 @@ fn the_realistic_rig_is_calibrated_from_its_own_renders() {
     }
     assert!(baseline_mm.abs() < 0.2 && position_mm < 0.6 && rotation_deg < 0.15, "the rig is off");
 }
+
+/// `marvin calibrate cameras` end to end: the arm carries the board through the realistic
+/// cell, the files are written, and the solution (computed without the truth) is compared with
+/// the cameras as built by the command itself, after the solve. Seed 11: never used for a
+/// choice.
+#[test]
+fn calibrate_cameras_through_the_arm_finds_the_cameras_as_built() {
+    let out = std::env::temp_dir().join(format!("marvin_calibrate_cameras_{}", std::process::id()));
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_marvin"))
+        .args([
+            "calibrate",
+            "cameras",
+            concat!(env!("CARGO_MANIFEST_DIR"), "/worlds/widgets.toml"),
+            "--seed",
+            "11",
+            "--json",
+            "--out",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let doc: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    let used = doc["views"].as_array().unwrap().iter().filter(|v| !v["left_rms_px"].is_null()).count();
+    assert!(used >= 10, "{used} views used");
+    assert!(doc["rms_px"].as_f64().unwrap() < 0.08, "{}", doc["rms_px"]);
+    let e = &doc["error"];
+    println!("{e}");
+    for side in ["left", "right"] {
+        let c = &e[side];
+        let f = |k: &str| c[k].as_f64().unwrap().abs();
+        assert!(f("fx_rel") < 0.0015 && f("fy_rel") < 0.0015, "{side}: {c}");
+        assert!(f("cx_px") < 2.0 && f("cy_px") < 2.0, "{side}: {c}");
+        assert!(f("distortion_px_max") < 0.6, "{side}: {c}");
+    }
+    let g = |k: &str| e[k].as_f64().unwrap().abs();
+    assert!(g("baseline_mm") < 0.2 && g("right_position_mm") < 0.6 && g("rotation_deg") < 0.15, "{e}");
+    let file = camera_calib::file::CamerasFile::load(&out.join("cameras.json")).unwrap();
+    assert_eq!((file.width, file.height), (512, 512));
+    for name in ["left.yaml", "right.yaml"] {
+        let yaml = std::fs::read_to_string(out.join(name)).unwrap();
+        assert!(yaml.contains("distortion_model: plumb_bob") && yaml.contains("projection_matrix:"), "{yaml}");
+    }
+    std::fs::remove_dir_all(&out).unwrap();
+}

@@ -16,8 +16,8 @@ pub struct Board {
 }
 
 impl Board {
-    /// The library's board: 10 x 7 squares of 18 mm (9 x 6 inner corners).
-    pub const LIBRARY: Board = Board { squares: [10, 7], square_m: 0.018 };
+    /// The library's board: 10 x 7 squares of 15 mm (9 x 6 inner corners).
+    pub const LIBRARY: Board = Board { squares: [10, 7], square_m: 0.015 };
 
     /// Inner corners along x and y.
     pub fn inner(&self) -> [usize; 2] {

@@ -33,6 +33,8 @@ pub enum Dropped {
     NotFound,
     #[error("board partly out of view or hidden: {found} of {expected} corners found")]
     Partial { found: usize, expected: usize },
+    #[error("the grid found ({found} corners) holds more than one place the board could be")]
+    Unclear { found: usize },
     #[error("too blurred: the squares' edges spread {sigma_px:.1} px (at most {MAX_BLUR_SIGMA_PX} px)")]
     Blurred { sigma_px: f64 },
     #[error("too oblique: the squares are foreshortened to {ratio:.2} of their width (at least {MIN_FORESHORTENING})")]
@@ -71,15 +73,21 @@ fn board_order(
 ) -> Result<Vec<Point2<f64>>, Dropped> {
     let [nx, ny] = board.inner();
     let partial = || Dropped::Partial { found: labelled.len(), expected: nx * ny };
-    if labelled.len() != nx * ny {
+    if labelled.len() < nx * ny {
         return Err(partial());
     }
-    let u0 = labelled.keys().map(|k| k.0).min().unwrap_or(0);
-    let v0 = labelled.keys().map(|k| k.1).min().unwrap_or(0);
-    let span = (
-        labelled.keys().map(|k| k.0 - u0).max().unwrap_or(0) as usize + 1,
-        labelled.keys().map(|k| k.1 - v0).max().unwrap_or(0) as usize + 1,
-    );
+    // The board's corners are the one whole nx x ny (or ny x nx) window of the grid: a stray
+    // corner beside it (a finger's edge on the margin) is left out.
+    let windows: Vec<((i32, i32), (usize, usize))> = [(nx, ny), (ny, nx)]
+        .into_iter()
+        .flat_map(|span| labelled.keys().map(move |&origin| (origin, span)))
+        .filter(|&((u0, v0), (w, h))| {
+            (0..h as i32).all(|dv| (0..w as i32).all(|du| labelled.contains_key(&(u0 + du, v0 + dv))))
+        })
+        .collect();
+    let [((u0, v0), span)] = windows[..] else {
+        return Err(if windows.is_empty() { partial() } else { Dropped::Unclear { found: labelled.len() } });
+    };
     let (nxi, nyi) = (nx as i32, ny as i32);
     // Board (i, j) -> grid (u, v), for the two turns that fit the grid's shape (both keep the
     // image's handedness: the board is seen from its printed face).

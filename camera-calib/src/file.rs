@@ -169,7 +169,7 @@ impl CamerasFile {
         let (r, p) = self.rectification();
         [("left", &self.left, 0), ("right", &self.right, 1)].map(|(name, c, k)| {
             let matrix = |rows: usize, cols: usize, data: &[f64]| {
-                let d: Vec<String> = data.iter().map(|x| format!("{x:.12e}")).collect();
+                let d: Vec<String> = data.iter().map(|x| yaml_float(*x)).collect();
                 format!("\n  rows: {rows}\n  cols: {cols}\n  data: [{}]", d.join(", "))
             };
             let kmat = [c.fx, 0.0, c.cx, 0.0, c.fy, c.cy, 0.0, 0.0, 1.0];
@@ -184,6 +184,16 @@ impl CamerasFile {
                 matrix(3, 4, &p[k]),
             )
         })
+    }
+}
+
+/// A float as YAML 1.1 readers (PyYAML among them) take one: a point in the mantissa and a
+/// signed exponent (`1.5e+2`, not `1.5e2`, which they read as a string).
+fn yaml_float(x: f64) -> String {
+    let s = format!("{x:.12e}");
+    match s.split_once('e') {
+        Some((m, e)) if !e.starts_with('-') => format!("{m}e+{e}"),
+        _ => s,
     }
 }
 

@@ -104,7 +104,7 @@ mod tests {
             let size = m.extent().max() * 1e3;
             let expected = match name.as_str() {
                 "flag" => 40.0..=120.0,
-                "board" => 200.0..=240.0,
+                "board" => 160.0..=240.0,
                 _ => 30.0..=120.0,
             };
             assert!(expected.contains(&size), "{name} is {size} mm across");
