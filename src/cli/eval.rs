@@ -73,8 +73,13 @@ pub enum EvalTarget {
     /// sighting the solve used), `flag_creep_mm_max`, `_median` (how far the flag moved in the
     /// jaws between the first and last sighting, from the physics), `flag_turn_deg_max`,
     /// `_median` (how far it turned), `failed`, `unsettled_scenes`.
+    #[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
     Calibrate {
-        world: PathBuf,
+        /// `marvin eval calibrate cameras WORLD`: the camera calibration (see its --help).
+        #[command(subcommand)]
+        what: Option<EvalCalibrateWhat>,
+        #[arg(required = true)]
+        world: Option<PathBuf>,
         #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u64).range(1..=super::args::MAX_COUNT))]
         trials: u64,
         /// First seed; trial k uses seed + k.
@@ -131,6 +136,29 @@ pub enum EvalTarget {
     },
 }
 
+/// What `marvin eval calibrate` evaluates besides the hand-eye calibration.
+#[derive(Subcommand, Debug)]
+pub enum EvalCalibrateWhat {
+    /// Seeded camera calibrations (`marvin calibrate cameras`), each against the cameras as
+    /// built: medians and 90th percentiles of the focal lengths' relative error (`f_rel`), the
+    /// principal points' (`principal_point_px`), the distortion field's worst difference over
+    /// the image (`distortion_field_px_max`), `baseline_mm`, `right_position_mm`,
+    /// `rotation_deg`, `rms_px`; `views_used_median`, `board_lost_on_the_way`, `failed`.
+    Cameras {
+        world: PathBuf,
+        #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u64).range(1..=super::args::MAX_COUNT))]
+        trials: u64,
+        /// First seed; trial k uses seed + k.
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(..=super::args::MAX_FIRST_SEED))]
+        seed: u64,
+        /// Board poses per calibration.
+        #[arg(long, default_value_t = 24, value_parser = clap::value_parser!(u16).range(3..=500))]
+        poses: u16,
+        #[arg(long)]
+        json: bool,
+    },
+}
+
 pub fn run(target: EvalTarget) -> anyhow::Result<()> {
     let (world, scenes, seed, slices, deblur, json) = match target {
         EvalTarget::Vision { world, scenes, seed, slices, no_deblur, json } => {
@@ -141,7 +169,13 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
         }
         EvalTarget::Pick { world, trials, seed, json } => return super::eval_pick::run(&world, trials, seed, json),
         EvalTarget::Run { world, scenes, seed, json } => return super::eval_run::eval(&world, scenes, seed, json),
-        EvalTarget::Calibrate { world, trials, seed, poses, json } => {
+        EvalTarget::Calibrate {
+            what: Some(EvalCalibrateWhat::Cameras { world, trials, seed, poses, json }), ..
+        } => {
+            return super::calibrate_cameras::eval(&world, trials, seed, poses as usize, json);
+        }
+        EvalTarget::Calibrate { what: None, world, trials, seed, poses, json } => {
+            let world = world.expect("clap requires the world without a subcommand");
             return super::calibrate::eval(&world, trials, seed, poses as usize, json);
         }
     };
