@@ -97,8 +97,12 @@ enum Command {
         #[arg(long)]
         right: PathBuf,
         /// Calibration: a scene.json from `marvin render`, or a bare {left, right} file.
-        #[arg(long, conflicts_with = "rectified")]
+        #[arg(long, conflicts_with_all = ["rectified", "cameras"])]
         calib: Option<PathBuf>,
+        /// The cameras as `marvin calibrate cameras` measured them (its cameras.json): edge
+        /// locations are corrected for each lens's distortion before they are rectified.
+        #[arg(long, conflicts_with = "rectified")]
+        cameras: Option<PathBuf>,
         /// The images are already rectified (rows are epipolar lines); needs --disparity.
         #[arg(long, requires = "disparity")]
         rectified: bool,
@@ -292,8 +296,8 @@ fn main() -> std::process::ExitCode {
         }
         Command::Render { world, seed, out } => render::run(&world, seed, &out),
         Command::Edges { image, sigma, json, out } => edges::run(&image, sigma, json, out.as_deref()),
-        Command::Stereo { left, right, calib, rectified, disparity, slices, json, out } => {
-            stereo::geometry(calib.as_deref(), rectified, disparity)
+        Command::Stereo { left, right, calib, cameras, rectified, disparity, slices, json, out } => {
+            stereo::geometry(calib.as_deref(), cameras.as_deref(), rectified, disparity)
                 .and_then(|g| stereo::run(&left, &right, &g, slices as usize, json, out.as_deref()))
         }
         Command::Locate { world, seed, models, json, out, rerun, no_deblur } => {

@@ -66,6 +66,19 @@ fn stereo_json_lines_lie_on_the_rendered_surfaces() {
     let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert!(doc["matches"].as_array().unwrap().len() > 500);
     let calib = mesh::StereoCalibration::load(&dir.join("scene.json")).unwrap();
+    let (on_surface, judged) = lines_on_surfaces(&doc, &dir, &calib.left);
+    let fraction = on_surface as f64 / judged.max(1) as f64;
+    eprintln!("{on_surface} of {judged} 3D lines on the rendered surfaces ({fraction:.3})");
+    assert!(judged >= 30, "only {judged} lines to judge");
+    assert!(fraction >= 0.88, "{on_surface} of {judged} 3D lines lie on the rendered surfaces");
+}
+
+/// Of the 3D lines in `stereo --json`'s output, how many lie on the rendered surfaces, and how
+/// many could be judged: each line's midpoint, projected into the left image through `left`,
+/// must be as deep as the depth map there (within 2 mm of the nearest and farthest surface in a
+/// 7x7 window, as a line on an occluding edge lies on the nearer side); lines on the robot's
+/// column (ids >= 1000, whose silhouettes the two cameras see differently) are left out.
+fn lines_on_surfaces(doc: &serde_json::Value, dir: &Path, left: &mesh::PinholeCamera) -> (usize, usize) {
     let depth = image::open(dir.join("depth_left.png")).unwrap().into_luma16();
     let ids = image::open(dir.join("ids_left.png")).unwrap().into_luma16();
     let xyz = |v: &serde_json::Value| -> [f64; 3] { std::array::from_fn(|k| v[k].as_f64().unwrap()) };
@@ -73,7 +86,7 @@ fn stereo_json_lines_lie_on_the_rendered_surfaces() {
     for line in doc["lines3d"].as_array().unwrap() {
         let (a, b) = (xyz(&line["a"]), xyz(&line["b"]));
         let mid = nalgebra::Point3::from(std::array::from_fn::<f64, 3, _>(|k| (a[k] + b[k]) / 2.0));
-        let Some(px) = calib.left.project_cam(&mid) else { continue };
+        let Some(px) = left.project_cam(&mid) else { continue };
         let (u, v) = (px.x.round() as i64, px.y.round() as i64);
         let window: Vec<(u32, u32)> = (-3..=3)
             .flat_map(|dy| (-3..=3).map(move |dx| (u + dx, v + dy)))
@@ -89,10 +102,43 @@ fn stereo_json_lines_lie_on_the_rendered_surfaces() {
         judged += 1;
         on_surface += usize::from(mid.z >= near - 0.002 && mid.z <= far + 0.002);
     }
-    let fraction = on_surface as f64 / judged.max(1) as f64;
-    eprintln!("{on_surface} of {judged} 3D lines on the rendered surfaces ({fraction:.3})");
-    assert!(judged >= 30, "only {judged} lines to judge");
-    assert!(fraction >= 0.88, "{on_surface} of {judged} 3D lines lie on the rendered surfaces");
+    (on_surface, judged)
+}
+
+/// The same on the realistic cell's images, with the cameras `marvin calibrate cameras`
+/// measured (the fixture of `camera-calib/tests/`: this world's rig): edge locations corrected
+/// for the lenses before rectification put 3D lines on the surfaces, where the cameras as the
+/// world file draws them do not. Measured: 12 of 14 lines (the nominal cameras: 1 of 8). The
+/// realistic front end matches far fewer edgels than the ideal (issue 48), hence few lines.
+#[test]
+fn stereo_through_calibrated_lenses_puts_lines_on_the_surfaces() {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli_vision_realistic");
+    let out = marvin(&["render", "worlds/widgets.toml", "--seed", "3", "--out", path(&dir)]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let cameras = Path::new(env!("CARGO_MANIFEST_DIR")).join("camera-calib/tests/fixtures/seed3_cameras.json");
+    let (left_png, right_png) = (dir.join("left.png"), dir.join("right.png"));
+    let args =
+        ["stereo", "--left", path(&left_png), "--right", path(&right_png), "--cameras", path(&cameras), "--json"];
+    let out = marvin(&args);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let left = camera_calib::file::CamerasFile::load(&cameras).unwrap().stereo_calibration().left;
+    let (on_surface, judged) = lines_on_surfaces(&doc, &dir, &left);
+    eprintln!("{on_surface} of {judged} 3D lines on the rendered surfaces");
+    assert!(judged >= 10 && on_surface as f64 >= 0.75 * judged as f64, "{on_surface} of {judged}");
+    let bad = dir.join("bad_cameras.json");
+    std::fs::write(&bad, "{\"format\": \"marvin-cameras/1\"}").unwrap();
+    let out = marvin(&[
+        "stereo",
+        "--left",
+        path(&dir.join("left.png")),
+        "--right",
+        path(&dir.join("right.png")),
+        "--cameras",
+        path(&bad),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.contains("bad_cameras.json"), "{stderr}");
 }
 
 #[test]

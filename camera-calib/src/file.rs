@@ -121,6 +121,25 @@ impl CamerasFile {
         }
     }
 
+    /// The pair as vision takes it: the left camera at the origin of `cam`, the right where
+    /// the calibration puts it, each with its lens.
+    pub fn stereo_calibration(&self) -> mesh::StereoCalibration {
+        let camera = |c: &CameraEntry, world_from_cam: Isometry3<f64>| mesh::PinholeCamera {
+            width: self.width,
+            height: self.height,
+            fx: c.fx,
+            fy: c.fy,
+            cx: c.cx,
+            cy: c.cy,
+            world_from_cam,
+            distortion: mesh::distortion::PlumbBob::from_d(c.distortion),
+        };
+        mesh::StereoCalibration {
+            left: camera(&self.left, Isometry3::identity()),
+            right: camera(&self.right, self.right_from_left.isometry().inverse()),
+        }
+    }
+
     /// Reads `cameras.json`, naming the file and the field at fault.
     pub fn load(path: &Path) -> Result<CamerasFile, FileError> {
         let err = |message: String| FileError { path: path.display().to_string(), message };

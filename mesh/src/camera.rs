@@ -8,7 +8,8 @@ use nalgebra::{Isometry3, Point2, Point3, Vector3};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
-/// One calibrated pinhole camera (no lens distortion).
+/// One calibrated camera: a pinhole and, when it has been measured, its lens's `plumb_bob`
+/// distortion (none by default). Pixels are where the lens puts light; rays are the ideal ones.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PinholeCamera {
@@ -23,6 +24,9 @@ pub struct PinholeCamera {
     /// Pose of the camera in the world (maps camera coordinates to world coordinates).
     #[serde(with = "crate::pose::iso_serde")]
     pub world_from_cam: Isometry3<f64>,
+    /// The lens's distortion (a calibration's; none for the renderer's own cameras).
+    #[serde(default, skip_serializing_if = "crate::distortion::PlumbBob::is_none")]
+    pub distortion: crate::distortion::PlumbBob,
 }
 
 impl PinholeCamera {
@@ -49,6 +53,7 @@ impl PinholeCamera {
             cx: principal_point[0],
             cy: principal_point[1],
             world_from_cam,
+            distortion: Default::default(),
         }
     }
 
@@ -56,9 +61,36 @@ impl PinholeCamera {
         self.world_from_cam.inverse()
     }
 
-    /// Projects a point given in this camera's frame; `None` behind the camera.
+    /// Projects a point given in this camera's frame (through the lens, if it has a
+    /// distortion); `None` behind the camera.
     pub fn project_cam(&self, p: &Point3<f64>) -> Option<Point2<f64>> {
-        (p.z > 1e-9).then(|| Point2::new(self.fx * p.x / p.z + self.cx, self.fy * p.y / p.z + self.cy))
+        if p.z <= 1e-9 {
+            return None;
+        }
+        if self.distortion.is_none() {
+            return Some(Point2::new(self.fx * p.x / p.z + self.cx, self.fy * p.y / p.z + self.cy));
+        }
+        let (x, y) = self.distortion.distort(p.x / p.z, p.y / p.z);
+        Some(Point2::new(self.fx * x + self.cx, self.fy * y + self.cy))
+    }
+
+    /// Where an ideal pinhole of the same intrinsics would image the ray the lens brings to
+    /// pixel `(u, v)`: the pixel corrected for distortion (itself without one).
+    pub fn undistort_px(&self, u: f64, v: f64) -> (f64, f64) {
+        if self.distortion.is_none() {
+            return (u, v);
+        }
+        let r = self.ray_cam(u, v);
+        (self.fx * r.x + self.cx, self.fy * r.y + self.cy)
+    }
+
+    /// Where the lens puts the ray an ideal pinhole of the same intrinsics images at `(u, v)`.
+    pub fn distort_px(&self, u: f64, v: f64) -> (f64, f64) {
+        if self.distortion.is_none() {
+            return (u, v);
+        }
+        let (x, y) = self.distortion.distort((u - self.cx) / self.fx, (v - self.cy) / self.fy);
+        (self.fx * x + self.cx, self.fy * y + self.cy)
     }
 
     /// Projects a world point to pixel coordinates; `None` behind the camera.
@@ -66,9 +98,15 @@ impl PinholeCamera {
         self.project_cam(&self.world_from_cam.inverse_transform_point(p))
     }
 
-    /// Direction (in the camera frame, with `z = 1`) of the ray through pixel `(u, v)`.
+    /// Direction (in the camera frame, with `z = 1`) of the ray through pixel `(u, v)` (the
+    /// ray the lens brings there, if it has a distortion).
     pub fn ray_cam(&self, u: f64, v: f64) -> Vector3<f64> {
-        Vector3::new((u - self.cx) / self.fx, (v - self.cy) / self.fy, 1.0)
+        let (xd, yd) = ((u - self.cx) / self.fx, (v - self.cy) / self.fy);
+        if self.distortion.is_none() {
+            return Vector3::new(xd, yd, 1.0);
+        }
+        let (x, y) = self.distortion.undistort(xd, yd).unwrap_or((xd, yd));
+        Vector3::new(x, y, 1.0)
     }
 
     /// Origin and unit direction, in the world, of the ray through pixel `(u, v)`.

@@ -24,14 +24,25 @@ pub fn parse_range(s: &str) -> Result<(f32, f32), String> {
     if lo < hi { Ok((lo, hi)) } else { Err(format!("`{s}`: MIN must be below MAX")) }
 }
 
-pub fn geometry(calib: Option<&Path>, rectified: bool, disparity: Option<(f32, f32)>) -> anyhow::Result<Geometry> {
-    match (calib, rectified, disparity) {
-        (Some(path), false, None) => {
+pub fn geometry(
+    calib: Option<&Path>,
+    cameras: Option<&Path>,
+    rectified: bool,
+    disparity: Option<(f32, f32)>,
+) -> anyhow::Result<Geometry> {
+    match (calib, cameras, rectified, disparity) {
+        (Some(path), None, false, None) => {
             let calib = mesh::StereoCalibration::load(path)?;
-            Ok(Geometry::Calibrated(calib))
+            Ok(Geometry::Calibrated(Box::new(calib)))
         }
-        (None, true, Some((disparity_min, disparity_max))) => Ok(Geometry::Rectified { disparity_min, disparity_max }),
-        _ => bail!("give either --calib FILE, or --rectified with --disparity MIN:MAX"),
+        (None, Some(path), false, None) => {
+            let file = camera_calib::file::CamerasFile::load(path)?;
+            Ok(Geometry::Calibrated(Box::new(file.stereo_calibration())))
+        }
+        (None, None, true, Some((disparity_min, disparity_max))) => {
+            Ok(Geometry::Rectified { disparity_min, disparity_max })
+        }
+        _ => bail!("give one of --calib FILE or --cameras FILE, or --rectified with --disparity MIN:MAX"),
     }
 }
 

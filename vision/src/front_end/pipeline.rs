@@ -53,7 +53,7 @@ pub fn disparity_range(rect: &Rectification, near: f64, far: f64) -> (f32, f32) 
 pub enum Geometry {
     /// A calibrated verged pair: edges are rectified, disparities limited to depths of
     /// [`WORKSPACE_DEPTH_M`].
-    Calibrated(StereoCalibration),
+    Calibrated(Box<StereoCalibration>),
     /// Images already rectified (rows are epipolars), with the disparity range to search.
     Rectified { disparity_min: f32, disparity_max: f32 },
 }
@@ -83,7 +83,7 @@ pub const WORKSPACE_DEPTH_M: (f64, f64) = (0.6, 1.6);
 
 /// The front end on a calibrated pair.
 pub fn run(left: &GreyImage, right: &GreyImage, calib: &StereoCalibration, canny_params: &CannyParams) -> FrontEnd {
-    run_with(left, right, &Geometry::Calibrated(calib.clone()), canny_params)
+    run_with(left, right, &Geometry::Calibrated(Box::new(calib.clone())), canny_params)
 }
 
 /// The front end: Canny on both images, strings of the left, rectification, PMF.

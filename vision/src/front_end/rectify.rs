@@ -2,6 +2,10 @@
 //! parallel pair sharing one rotation and one set of intrinsics, so that a rectified row is an
 //! epipolar line in both and disparity is `x_left - x_right` (the Middlebury convention).
 //!
+//! A camera with a measured lens distortion has its edge locations corrected first (each to
+//! where an ideal pinhole of the same intrinsics would see it, as TINA rectified edge locations
+//! from its calibration), without resampling the image.
+//!
 //! Rectified frame: `x` along the baseline (left centre to right centre), `z` the mean of the two
 //! optical axes made perpendicular to it, `y = z x x` (down in the image, as in the cameras).
 
@@ -33,6 +37,9 @@ pub struct Rectification {
     right_k_inv: Matrix3<f64>,
     left_k: Matrix3<f64>,
     right_k: Matrix3<f64>,
+    /// The cameras themselves, for their lenses.
+    left: PinholeCamera,
+    right: PinholeCamera,
 }
 
 fn k_matrix(c: &PinholeCamera) -> Matrix3<f64> {
@@ -62,6 +69,8 @@ impl Rectification {
             right_k_inv: k(r).try_inverse().expect("focal lengths are positive"),
             left_k: k(l),
             right_k: k(r),
+            left: l.clone(),
+            right: r.clone(),
         }
     }
 
@@ -87,28 +96,42 @@ impl Rectification {
         k * rot.inverse().matrix() * self.rect_k().try_inverse().expect("f > 0")
     }
 
-    /// Rectified position of pixel `(x, y)` of one camera.
+    fn camera(&self, side: Side) -> &PinholeCamera {
+        match side {
+            Side::Left => &self.left,
+            Side::Right => &self.right,
+        }
+    }
+
+    /// Rectified position of pixel `(x, y)` of one camera (corrected for its lens first).
     pub fn to_rectified(&self, side: Side, x: f64, y: f64) -> (f64, f64) {
+        let (x, y) = self.camera(side).undistort_px(x, y);
         apply(&self.homography(side), x, y)
     }
 
-    /// A camera's pixel seen at rectified position `(x, y)`.
+    /// A camera's pixel seen at rectified position `(x, y)` (through its lens).
     pub fn from_rectified(&self, side: Side, x: f64, y: f64) -> (f64, f64) {
-        apply(&self.inverse_homography(side), x, y)
+        let (x, y) = apply(&self.inverse_homography(side), x, y);
+        self.camera(side).distort_px(x, y)
     }
 
-    /// Rectifies edgels: positions, and orientations through the homography's local Jacobian.
+    /// Rectifies edgels: positions, and orientations through the mapping's local Jacobian.
     pub fn rectify_edgels(&self, side: Side, edgels: &[Edgel]) -> Vec<Edgel> {
         let h = self.homography(side);
+        let cam = self.camera(side);
+        let map = |x: f64, y: f64| {
+            let (x, y) = cam.undistort_px(x, y);
+            apply(&h, x, y)
+        };
         edgels
             .iter()
             .map(|e| {
                 let (x, y) = (e.x as f64, e.y as f64);
-                let (rx, ry) = apply(&h, x, y);
+                let (rx, ry) = map(x, y);
                 // The edge runs along the tangent (perpendicular to the gradient); map a point a
                 // pixel along it and turn the mapped tangent back into a gradient direction.
                 let (s, c) = (e.orientation as f64).sin_cos();
-                let (tx, ty) = apply(&h, x - s, y + c);
+                let (tx, ty) = map(x - s, y + c);
                 // Tangent (-sin, cos) of the gradient angle: angle = atan2(-tangent.x, tangent.y).
                 let orientation = (-(tx - rx)).atan2(ty - ry);
                 Edgel { x: rx as f32, y: ry as f32, orientation: orientation as f32, ..*e }
@@ -166,6 +189,29 @@ pub(crate) mod tests {
             assert!((d - rect.disparity_of(&p_cam)).abs() < 1e-9);
             assert!((rect.triangulate(lx, ly, d) - p_cam).norm() < 1e-12);
         }
+    }
+
+    #[test]
+    fn through_lenses_rows_are_still_epipolar_lines_and_points_come_back() {
+        let mut calib = verged_pair();
+        calib.left.distortion = mesh::distortion::PlumbBob::from_d([-0.2, 0.09, 3e-4, -2e-4, 0.0]);
+        calib.right.distortion = mesh::distortion::PlumbBob::from_d([-0.19, 0.08, -2e-4, 3e-4, 0.0]);
+        let rect = Rectification::new(&calib);
+        for p in [Point3::new(0.0, 0.0, 0.0), Point3::new(0.15, -0.12, 0.03), Point3::new(-0.14, 0.16, 0.08)] {
+            let (l, r) = (calib.left.project_world(&p).unwrap(), calib.right.project_world(&p).unwrap());
+            let (lx, ly) = rect.to_rectified(Side::Left, l.x, l.y);
+            let (rx, ry) = rect.to_rectified(Side::Right, r.x, r.y);
+            assert!((ly - ry).abs() < 1e-8, "rows differ: {ly} vs {ry}");
+            let p_cam = calib.left.world_from_cam.inverse_transform_point(&p);
+            assert!((rect.triangulate(lx, ly, lx - rx) - p_cam).norm() < 1e-9);
+            let back = rect.from_rectified(Side::Left, lx, ly);
+            assert!((back.0 - l.x).abs() < 1e-8 && (back.1 - l.y).abs() < 1e-8);
+        }
+        // Without the correction the same point would land pixels away.
+        let pinholes = Rectification::new(&verged_pair());
+        let l = calib.left.project_world(&Point3::new(0.15, -0.12, 0.03)).unwrap();
+        let (a, b) = (pinholes.to_rectified(Side::Left, l.x, l.y), rect.to_rectified(Side::Left, l.x, l.y));
+        assert!((a.0 - b.0).hypot(a.1 - b.1) > 1.0, "the lens moved the point by {a:?} -> {b:?} only");
     }
 
     #[test]
