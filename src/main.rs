@@ -280,6 +280,10 @@ enum CalibrateWhat {
         /// board's geometry and the corners found in views.json, for any other tool.
         #[arg(long)]
         save_images: Option<PathBuf>,
+        /// Record the calibration for rerun in this file: each view's images with the corners
+        /// found, their reprojections and residuals; the cameras and the boards in 3D.
+        #[arg(long)]
+        rerun: Option<PathBuf>,
     },
 }
 
@@ -311,7 +315,7 @@ fn main() -> std::process::ExitCode {
             serve::run(serve::ServeArgs { world, seed, listen, token_file, hand_eye, truth, idle_timeout_s })
         }
         Command::Calibrate {
-            what: Some(CalibrateWhat::Cameras { world, poses, seed, connect, out, json, save_images }),
+            what: Some(CalibrateWhat::Cameras { world, poses, seed, connect, out, json, save_images, rerun }),
             ..
         } => calibrate_cameras::run(calibrate_cameras::CamerasArgs {
             world,
@@ -321,6 +325,7 @@ fn main() -> std::process::ExitCode {
             out,
             json,
             save_images,
+            rerun,
         }),
         Command::Calibrate { what: None, world, poses, seed, connect, out, json, rerun } => {
             let world = world.expect("clap requires the world without a subcommand");

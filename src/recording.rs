@@ -15,6 +15,9 @@
 //! - `cell/truth/objects/<id>`: with a server started here, the objects' meshes where the
 //!   simulation has them after each cycle (evaluation's view, logged after the fact);
 //! - `cell/calibration`: the flag sightings, the solved camera pose, and (locally) the true one;
+//! - `rig`: with `marvin calibrate cameras --rerun`, the cameras as solved (the left camera's
+//!   frame), each view's images with the corners found, where the solution reprojects them and
+//!   the residuals (drawn 100 times longer), and the boards, on a `view` sequence;
 //! - `stages/<stage>`: each cycle's stage times, ms; `joints/<joint>`: the arm's joints at the
 //!   end of each cycle; `log`: a text log of events.
 //!
@@ -24,6 +27,7 @@
 //! feature, asking for a recording is an error that says so.
 
 use crate::calibrate::Calibration;
+use crate::calibrate_cameras::CameraCalibration;
 use crate::perception::Pair;
 use crate::protocol::{BinBox, CaptureReply, TruthReply};
 use crate::run::Cycle;
@@ -361,6 +365,86 @@ mod with_rerun {
             Ok(())
         }
 
+        /// A camera calibration, view by view on a `view` sequence: both images with the corners
+        /// found (green) and where the solution reprojects them (red), the residuals drawn 100
+        /// times longer; in 3D (`rig`, the left camera's frame) both cameras as solved and every
+        /// board's corners where the solution puts them.
+        pub fn camera_calibration(&mut self, c: &CameraCalibration) -> anyhow::Result<()> {
+            let s = &c.solution;
+            let board = camera_calib::Board::LIBRARY;
+            let corners = board.points();
+            let left_from_right = s.right_from_left.inverse();
+            for (side, k, pose) in [("left", &s.left, Isometry3::identity()), ("right", &s.right, left_from_right)] {
+                let path = format!("rig/camera/{side}");
+                self.rec.log_static(path.as_str(), &transform(&pose))?;
+                let pinhole = rerun::Pinhole::from_focal_length_and_resolution(
+                    [k.fx as f32, k.fy as f32],
+                    [c.size[0] as f32, c.size[1] as f32],
+                )
+                .with_principal_point([k.cx as f32, k.cy as f32]);
+                self.rec.log_static(format!("{path}/image").as_str(), &pinhole)?;
+            }
+            for (v, view) in c.views.iter().enumerate() {
+                self.rec.set_time_sequence("view", v as i64);
+                self.text(&format!("pose {}: {}", v + 1, view.note))?;
+                let Some(left_from_board) = s.boards.get(v).copied().flatten() else { continue };
+                self.rec.log(
+                    "rig/boards",
+                    &rerun::Points3D::new(points(&left_from_board, corners.iter().copied())).with_radii([0.0015]),
+                )?;
+                let sides = [
+                    ("left", &s.left, left_from_board, &view.corners.left, view.images.as_ref().map(|i| &i.0)),
+                    (
+                        "right",
+                        &s.right,
+                        s.right_from_left * left_from_board,
+                        &view.corners.right,
+                        view.images.as_ref().map(|i| &i.1),
+                    ),
+                ];
+                for (side, k, cam_from_board, found, image) in sides {
+                    let path = format!("rig/camera/{side}/image");
+                    if let Some(img) = image {
+                        self.rec.log(
+                            path.as_str(),
+                            &rerun::Image::from_l8(img.as_raw().clone(), [img.width(), img.height()]),
+                        )?;
+                    }
+                    let Some(found) = found else {
+                        self.rec.log(format!("{path}/corners").as_str(), &rerun::Clear::recursive())?;
+                        continue;
+                    };
+                    let predicted: Vec<[f32; 2]> = corners
+                        .iter()
+                        .filter_map(|p| k.project(&(cam_from_board * p)))
+                        .map(|q| [q.x as f32, q.y as f32])
+                        .collect();
+                    let seen: Vec<[f32; 2]> = found.iter().map(|q| [q.x as f32, q.y as f32]).collect();
+                    let residuals: Vec<[f32; 2]> = predicted
+                        .iter()
+                        .zip(&seen)
+                        .map(|(p, q)| [100.0 * (p[0] - q[0]), 100.0 * (p[1] - q[1])])
+                        .collect();
+                    self.rec.log(
+                        format!("{path}/corners/found").as_str(),
+                        &rerun::Points2D::new(seen.clone()).with_radii([1.0]).with_colors([0x33DD33FF]),
+                    )?;
+                    self.rec.log(
+                        format!("{path}/corners/reprojected").as_str(),
+                        &rerun::Points2D::new(predicted).with_radii([0.6]).with_colors([0xFF3333FF]),
+                    )?;
+                    self.rec.log(
+                        format!("{path}/corners/residual_x100").as_str(),
+                        &rerun::Arrows2D::from_vectors(residuals).with_origins(seen).with_colors([0xFFAA00FF]),
+                    )?;
+                }
+            }
+            self.text(&format!(
+                "cameras calibrated: reprojection RMS {:.3} px (left {:.3}, right {:.3})",
+                s.rms_px, s.left_rms_px, s.right_rms_px
+            ))
+        }
+
         /// Flushes and closes the recording, so that `rerun rrd verify` accepts the file.
         pub fn finish(self) -> anyhow::Result<()> {
             self.rec.flush_blocking().map_err(|e| anyhow::anyhow!("closing the recording: {e}"))?;
@@ -388,6 +472,9 @@ mod without_rerun {
         }
         pub fn at(&self, _cycle: usize, _sim_time_s: f64) {}
         pub fn calibration(&mut self, _c: &Calibration) -> anyhow::Result<()> {
+            Ok(())
+        }
+        pub fn camera_calibration(&mut self, _c: &CameraCalibration) -> anyhow::Result<()> {
             Ok(())
         }
         pub fn true_camera(&self, _t: &Isometry3<f64>) -> anyhow::Result<()> {

@@ -114,3 +114,26 @@ fn locate_calibrate_and_pick_record_what_they_have() {
         ],
     );
 }
+
+/// `marvin calibrate cameras --rerun`: each view's images with the corners found, their
+/// reprojections and residuals, the cameras and the boards. On the realistic world: the camera
+/// calibration works there.
+#[test]
+fn a_camera_calibration_is_recorded_view_by_view() {
+    let entities = recorded_entities(
+        "cameras",
+        &["calibrate", "cameras", "worlds/widgets.toml", "--seed", "3", "--out", "target/rrd-cameras", "--rerun"],
+    );
+    assert_holds(
+        &entities,
+        &[
+            "rig/camera/left",
+            "rig/camera/right/image",
+            "rig/camera/left/image/corners/found",
+            "rig/camera/left/image/corners/reprojected",
+            "rig/camera/right/image/corners/residual_x100",
+            "rig/boards",
+            "log",
+        ],
+    );
+}

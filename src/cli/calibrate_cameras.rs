@@ -22,6 +22,8 @@ pub struct CamerasArgs {
     pub out: PathBuf,
     pub json: bool,
     pub save_images: Option<PathBuf>,
+    /// Where to record the calibration for rerun, if anywhere.
+    pub rerun: Option<PathBuf>,
 }
 
 /// The cameras as built, from the world file (evaluation only, after the fact).
@@ -88,7 +90,16 @@ pub fn run(args: CamerasArgs) -> anyhow::Result<()> {
             eprintln!("  {line}");
         }
     };
-    let c = run_once(cell, &scn.library, &config, args.save_images.is_some(), &mut progress)?;
+    let keep_images = args.save_images.is_some() || args.rerun.is_some();
+    let c = run_once(cell, &scn.library, &config, keep_images, &mut progress)?;
+    if let Some(path) = &args.rerun {
+        let mut r = marvin::recording::Recording::start(&marvin::recording::Sink::File(path.to_path_buf()))?;
+        r.camera_calibration(&c)?;
+        r.finish()?;
+        if !args.json {
+            eprintln!("recorded the calibration in {} (open it with `rerun {}`)", path.display(), path.display());
+        }
+    }
     let file = CamerasFile::from_solution(&c.solution, c.size);
     file.save_all(&args.out)?;
     if let Some(dir) = &args.save_images {
