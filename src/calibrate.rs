@@ -25,11 +25,14 @@ pub struct CalibrateConfig {
     pub seed: u64,
     /// Fraction of the joints' speed limits: slow, so that the flag does not creep in the jaws.
     pub speed: f64,
+    /// The cameras as calibrated (`marvin calibrate cameras`); without them, the calibration the
+    /// captures carry.
+    pub cameras: Option<mesh::StereoCalibration>,
 }
 
 impl Default for CalibrateConfig {
     fn default() -> Self {
-        CalibrateConfig { poses: 20, seed: 1, speed: 0.15 }
+        CalibrateConfig { poses: 20, seed: 1, speed: 0.15, cameras: None }
     }
 }
 
@@ -112,7 +115,7 @@ pub fn calibrate(
     }
     let mut poses = Vec::new();
     for (k, target) in calibration_poses(config.poses, config.seed).iter().enumerate() {
-        let record = visit(client, &flag, target, config.speed)?;
+        let record = visit(client, &flag, target, config)?;
         if record.base_from_gripper.is_some() {
             after_capture(client, k)?;
         }
@@ -125,7 +128,13 @@ pub fn calibrate(
 }
 
 /// Moves to one pose, captures and looks for the flag.
-fn visit(client: &mut Client, flag: &MatcherModel, target: &Isometry3<f64>, speed: f64) -> anyhow::Result<PoseRecord> {
+fn visit(
+    client: &mut Client,
+    flag: &MatcherModel,
+    target: &Isometry3<f64>,
+    config: &CalibrateConfig,
+) -> anyhow::Result<PoseRecord> {
+    let speed = config.speed;
     let mut record = PoseRecord { base_from_gripper: None, cam_from_flag: None, used: false, note: String::new() };
     let request = MoveTarget { tool: Some(WirePose::new(Some(Frame::Base), target)), joints: None, speed: Some(speed) };
     let moved = match client.move_to(request) {
@@ -137,7 +146,7 @@ fn visit(client: &mut Client, flag: &MatcherModel, target: &Isometry3<f64>, spee
         Err(e) => return Err(e.into()),
     };
     record.base_from_gripper = Some(moved.base_from_gripper.to_isometry("base_from_gripper")?);
-    let pair = Pair::from_capture(&client.capture()?)?;
+    let pair = Pair::from_capture(&client.capture()?, config.cameras.as_ref())?;
     let fe = front_end(&pair);
     match locate_flag(flag, &pair, &fe) {
         FlagSighting::Found { cam_from_flag, .. } => {

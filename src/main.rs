@@ -38,6 +38,10 @@ enum Command {
         /// A hand-eye file (from `marvin calibrate`) instead of calibrating first.
         #[arg(long)]
         hand_eye: Option<PathBuf>,
+        /// The cameras as `marvin calibrate cameras` measured them (its cameras.json), lenses
+        /// included, instead of the calibration the captures carry.
+        #[arg(long)]
+        cameras: Option<PathBuf>,
         /// Pick cycles at most.
         #[arg(long, default_value_t = 40, value_parser = clap::value_parser!(u16).range(1..=1000))]
         max_cycles: u16,
@@ -232,6 +236,10 @@ enum Command {
         /// the true one with a server started here), the table and bins.
         #[arg(long)]
         rerun: Option<PathBuf>,
+        /// The cameras as `marvin calibrate cameras` measured them (its cameras.json), lenses
+        /// included, instead of the calibration the captures carry.
+        #[arg(long)]
+        cameras: Option<PathBuf>,
     },
     /// Run seeded scenes through the pipeline and compare with ground truth.
     ///
@@ -289,14 +297,15 @@ enum CalibrateWhat {
 
 fn main() -> std::process::ExitCode {
     let result = match Cli::parse().command {
-        Command::Run { world, seed, connect, hand_eye, max_cycles, json, rerun, rerun_connect } => {
+        Command::Run { world, seed, connect, hand_eye, cameras, max_cycles, json, rerun, rerun_connect } => {
             use marvin::recording::Sink;
             let rerun = match (rerun, rerun_connect) {
                 (Some(file), _) => Some(Sink::File(file)),
                 (None, Some(url)) => Some(Sink::Viewer(Some(url).filter(|u| !u.is_empty()))),
                 (None, None) => None,
             };
-            run::run(run::RunArgs { world, seed, connect, hand_eye, max_cycles: max_cycles as usize, json, rerun })
+            let max_cycles = max_cycles as usize;
+            run::run(run::RunArgs { world, seed, connect, hand_eye, cameras, max_cycles, json, rerun })
         }
         Command::Render { world, seed, out } => render::run(&world, seed, &out),
         Command::Edges { image, sigma, json, out } => edges::run(&image, sigma, json, out.as_deref()),
@@ -327,9 +336,10 @@ fn main() -> std::process::ExitCode {
             save_images,
             rerun,
         }),
-        Command::Calibrate { what: None, world, poses, seed, connect, out, json, rerun } => {
+        Command::Calibrate { what: None, world, poses, seed, connect, out, json, rerun, cameras } => {
             let world = world.expect("clap requires the world without a subcommand");
-            calibrate::run(calibrate::CalibrateArgs { world, poses: poses as usize, seed, connect, out, json, rerun })
+            let poses = poses as usize;
+            calibrate::run(calibrate::CalibrateArgs { world, poses, seed, connect, out, json, rerun, cameras })
         }
         Command::Eval { what } => eval::run(what),
         Command::Bench { what } => bench::run(what),

@@ -42,12 +42,27 @@ pub struct Pair {
 }
 
 impl Pair {
-    pub fn from_capture(c: &CaptureReply) -> anyhow::Result<Pair> {
-        Ok(Pair {
-            left: decode_png(&c.left_png_b64).context("the left image")?,
-            right: decode_png(&c.right_png_b64).context("the right image")?,
-            calib: stereo_calibration(&c.calibration)?,
-        })
+    /// The pair of a capture, seen through `cameras` (a camera calibration's, lenses included)
+    /// or, without one, through the calibration the capture carries.
+    pub fn from_capture(c: &CaptureReply, cameras: Option<&StereoCalibration>) -> anyhow::Result<Pair> {
+        let left = decode_png(&c.left_png_b64).context("the left image")?;
+        let right = decode_png(&c.right_png_b64).context("the right image")?;
+        let calib = match cameras {
+            Some(cameras) => {
+                let size = (cameras.left.width as usize, cameras.left.height as usize);
+                anyhow::ensure!(
+                    size == (left.width, left.height),
+                    "the camera calibration is for {}x{} images, the capture's are {}x{}",
+                    size.0,
+                    size.1,
+                    left.width,
+                    left.height
+                );
+                cameras.clone()
+            }
+            None => stereo_calibration(&c.calibration)?,
+        };
+        Ok(Pair { left, right, calib })
     }
 }
 

@@ -23,11 +23,14 @@ pub struct RunConfig {
     pub max_cycles: usize,
     /// The bin picked objects go to (default: the server's first).
     pub bin: Option<String>,
+    /// The cameras as calibrated (`marvin calibrate cameras`); without them, the calibration the
+    /// captures carry.
+    pub cameras: Option<mesh::StereoCalibration>,
 }
 
 impl Default for RunConfig {
     fn default() -> Self {
-        RunConfig { max_cycles: 40, bin: None }
+        RunConfig { max_cycles: 40, bin: None, cameras: None }
     }
 }
 
@@ -134,7 +137,7 @@ pub fn run(
         client.home().context("parking the arm out of view")?;
         let clock = Instant::now();
         let capture = client.capture()?;
-        let pair = Pair::from_capture(&capture)?;
+        let pair = Pair::from_capture(&capture, config.cameras.as_ref())?;
         let capture_ms = clock.elapsed().as_secs_f64() * 1e3;
         let fe = front_end(&pair);
         let clock = Instant::now();

@@ -211,3 +211,25 @@ fn an_unsettled_scene_is_reported() {
     let doc: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(doc["unsettled_scenes"], 0, "{doc}");
 }
+
+/// A camera calibration file that is missing, or lacks a field, is refused before any server
+/// starts, naming the file (and the field).
+#[test]
+fn a_bad_camera_calibration_file_is_refused_naming_it() {
+    let dir = scratch("inputs_cameras");
+    let bad = dir.join("cameras.json");
+    std::fs::write(&bad, r#"{"format": "marvin-cameras/1", "width": 512}"#).unwrap();
+    let bad = bad.to_str().unwrap();
+    for args in [
+        vec!["run", "worlds/ideal/widgets.toml", "--cameras", bad],
+        vec!["calibrate", "worlds/ideal/widgets.toml", "--cameras", bad],
+        vec!["run", "worlds/ideal/widgets.toml", "--cameras", "/no/such/cameras.json"],
+    ] {
+        let o = marvin(&args);
+        assert!(!o.status.success(), "{args:?} was accepted");
+        let e = stderr(&o);
+        assert!(e.contains(args[3]), "{args:?}: {e}");
+    }
+    let e = stderr(&marvin(&["run", "worlds/ideal/widgets.toml", "--cameras", bad]));
+    assert!(e.contains("height") || e.contains("left"), "the missing field is not named: {e}");
+}

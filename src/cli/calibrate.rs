@@ -24,6 +24,13 @@ pub struct CalibrateArgs {
     pub json: bool,
     /// Where to record the calibration for rerun, if anywhere.
     pub rerun: Option<PathBuf>,
+    /// A camera calibration file (`marvin calibrate cameras`).
+    pub cameras: Option<PathBuf>,
+}
+
+/// The cameras of a camera calibration file, as vision takes them.
+pub fn load_cameras(path: &Path) -> anyhow::Result<mesh::StereoCalibration> {
+    Ok(camera_calib::file::CamerasFile::load(path)?.stereo_calibration())
 }
 
 /// What evaluation learns from the simulation (an in-process server only), after the fact.
@@ -135,7 +142,8 @@ pub fn error_of(c: &Calibration, truth: &Truth) -> Option<(f64, f64)> {
 pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
     let scn = sim::Scenario::load(&args.world)?;
     let seed = args.seed.unwrap_or(scn.world.seed);
-    let config = CalibrateConfig { poses: args.poses, seed, ..CalibrateConfig::default() };
+    let cameras = args.cameras.as_deref().map(load_cameras).transpose()?;
+    let config = CalibrateConfig { poses: args.poses, seed, cameras, ..CalibrateConfig::default() };
     if !args.json {
         eprintln!("calibrating: {} poses, seed {seed}", config.poses);
     }

@@ -197,7 +197,7 @@ pub fn eval(world: &Path, scenes: u64, seed: u64, json: bool) -> anyhow::Result<
     let scn = sim::Scenario::load(world)?;
     let cell = Cell::start(world, seed, None)?;
     let mut client = cell.connect()?;
-    let (cam_from_base, _) = hand_eye(&mut client, &scn.library, &HandEye::Calibrate, seed, true)?;
+    let (cam_from_base, _) = hand_eye(&mut client, &scn.library, &HandEye::Calibrate, seed, true, None)?;
     let calibration_error = calibration_error(&mut client, &cam_from_base)?;
     client.bye()?;
     cell.stop()?;

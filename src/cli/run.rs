@@ -4,6 +4,7 @@
 //! paper's Table 1.
 
 use super::calibrate::Cell;
+use super::calibrate::load_cameras;
 use super::eval_run::Judge;
 use super::output::emit;
 use super::session::{HandEye, failures, outcome_name, run_once};
@@ -18,6 +19,8 @@ pub struct RunArgs {
     pub seed: Option<u64>,
     pub connect: Option<String>,
     pub hand_eye: Option<PathBuf>,
+    /// A camera calibration file (`marvin calibrate cameras`).
+    pub cameras: Option<PathBuf>,
     pub max_cycles: usize,
     pub json: bool,
     /// Where to record the run for rerun, if anywhere.
@@ -76,7 +79,8 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         }
         line
     };
-    let config = RunConfig { max_cycles: args.max_cycles, ..RunConfig::default() };
+    let cameras = args.cameras.as_deref().map(load_cameras).transpose()?;
+    let config = RunConfig { max_cycles: args.max_cycles, cameras, ..RunConfig::default() };
     let source = args.hand_eye.clone().map_or(HandEye::Calibrate, HandEye::File);
     let mut recording = args.rerun.as_ref().map(Recording::start).transpose()?;
     let mut judge = Judge::new(cell.is_local(), &scn.library);

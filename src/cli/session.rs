@@ -49,6 +49,7 @@ pub fn hand_eye(
     source: &HandEye,
     seed: u64,
     quiet: bool,
+    cameras: Option<&mesh::StereoCalibration>,
 ) -> anyhow::Result<(Isometry3<f64>, Option<Calibration>)> {
     if let HandEye::Known(x) = source {
         return Ok((*x, None));
@@ -57,7 +58,7 @@ pub fn hand_eye(
         let he = hand_eye::HandEyeFile::load(f)?;
         return Ok((he.cam_from_base.to_isometry(), None));
     }
-    let config = CalibrateConfig { seed, ..CalibrateConfig::default() };
+    let config = CalibrateConfig { seed, cameras: cameras.cloned(), ..CalibrateConfig::default() };
     let mut progress = |line: &str| {
         if !quiet {
             eprintln!("  calibration {line}");
@@ -83,7 +84,7 @@ pub fn run_once(
 ) -> anyhow::Result<RunReport> {
     let library = &scn.library;
     let mut client = cell.connect()?;
-    let (cam_from_base, calibration) = hand_eye(&mut client, library, source, seed, quiet)?;
+    let (cam_from_base, calibration) = hand_eye(&mut client, library, source, seed, quiet, config.cameras.as_ref())?;
     // The arm as the recording draws it, from the world file's URDF.
     let arm = match recording.is_some() {
         true => Some(marvin::pick::Workcell::new(scn)?.arm),
