@@ -197,6 +197,11 @@ enum Command {
         /// `cam`-frame requests work from the start.
         #[arg(long)]
         hand_eye: Option<PathBuf>,
+        /// The cameras as `marvin calibrate cameras` measured them (its cameras.json): what
+        /// `capture` tells clients, lenses included, instead of the cameras as the world file
+        /// draws them.
+        #[arg(long)]
+        cameras: Option<PathBuf>,
         /// Serve the `truth` op (the simulation's ground truth) for evaluation and tests.
         #[arg(long)]
         truth: bool,
@@ -320,8 +325,8 @@ fn main() -> std::process::ExitCode {
         Command::Pick { world, object, all: _, model, seed, json, rerun } => {
             pick::run(&world, object, model.as_deref(), seed, json, rerun.as_deref())
         }
-        Command::Serve { world, seed, listen, token_file, hand_eye, truth, idle_timeout_s } => {
-            serve::run(serve::ServeArgs { world, seed, listen, token_file, hand_eye, truth, idle_timeout_s })
+        Command::Serve { world, seed, listen, token_file, hand_eye, cameras, truth, idle_timeout_s } => {
+            serve::run(serve::ServeArgs { world, seed, listen, token_file, hand_eye, cameras, truth, idle_timeout_s })
         }
         Command::Calibrate {
             what: Some(CalibrateWhat::Cameras { world, poses, seed, connect, out, json, save_images, rerun }),

@@ -23,7 +23,7 @@ pub fn stereo_calibration(rig: &RigCalibration) -> anyhow::Result<StereoCalibrat
         cx: i.cx,
         cy: i.cy,
         world_from_cam,
-        distortion: Default::default(),
+        distortion: mesh::distortion::PlumbBob::from_d(i.distortion),
     };
     let left_from_right = rig.left_from_right.to_isometry("calibration.left_from_right")?;
     let calib = StereoCalibration {

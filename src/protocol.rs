@@ -408,6 +408,14 @@ pub struct Intrinsics {
     pub fy: f64,
     pub cx: f64,
     pub cy: f64,
+    /// The lens's `plumb_bob` distortion `[k1, k2, p1, p2, k3]`, when the cameras were measured
+    /// (`marvin serve --cameras`); absent for none.
+    #[serde(default, skip_serializing_if = "no_distortion")]
+    pub distortion: [f64; 5],
+}
+
+fn no_distortion(d: &[f64; 5]) -> bool {
+    d.iter().all(|c| *c == 0.0)
 }
 
 /// What a calibrated stereo head knows of itself: both cameras' intrinsics and the right

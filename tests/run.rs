@@ -21,7 +21,8 @@ use std::time::Duration;
 
 fn server(seed: u64) -> (Server, Client) {
     let world = concat!(env!("CARGO_MANIFEST_DIR"), "/worlds/ideal/widgets.toml");
-    let cell = CellConfig { world: world.into(), seed: Some(seed), cam_from_base: None, expose_truth: true };
+    let cell =
+        CellConfig { world: world.into(), seed: Some(seed), cam_from_base: None, expose_truth: true, cameras: None };
     let server = Server::start(ServerConfig::new(cell, "127.0.0.1:0".parse().unwrap())).unwrap();
     let mut client = Client::connect(&server.addr().to_string(), Duration::from_secs(5)).unwrap();
     client.hello(None).unwrap();

@@ -385,3 +385,30 @@ fn off_loopback_without_a_token_the_server_refuses_to_start() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("without a token"), "{err}");
 }
+
+/// Started with `--cameras FILE`, the server's `capture` tells clients the measured cameras
+/// (lenses included), as a camera driver publishes its calibration file; without it, the
+/// cameras as the world file draws them (no distortion).
+#[test]
+fn capture_carries_the_measured_cameras_when_the_server_is_given_them() {
+    let file = concat!(env!("CARGO_MANIFEST_DIR"), "/camera-calib/tests/fixtures/seed3_cameras.json");
+    let measured = camera_calib::file::CamerasFile::load(std::path::Path::new(file)).unwrap();
+    for (extra, with_file) in [(vec!["--cameras", file], true), (vec![], false)] {
+        let served = serve(&extra);
+        let mut c = connect(&served);
+        c.hello(None).unwrap();
+        let calib = c.capture().unwrap().calibration;
+        if with_file {
+            assert_eq!(calib.left.distortion, measured.left.distortion);
+            assert_eq!(calib.right.distortion, measured.right.distortion);
+            assert!(
+                (calib.left.fx - measured.left.fx).abs() < 1e-9 && (calib.right.cy - measured.right.cy).abs() < 1e-9
+            );
+            let rig = iso(&calib.left_from_right).inverse();
+            let want = measured.right_from_left.isometry();
+            assert!((rig.translation.vector - want.translation.vector).norm() < 1e-9);
+        } else {
+            assert_eq!(calib.left.distortion, [0.0; 5]);
+        }
+    }
+}

@@ -321,7 +321,8 @@ fn table1(args: &BenchArgs, results: &[(&str, f64)], sliced: &mut StageTimes) ->
 fn server(args: &ServerBenchArgs) -> anyhow::Result<()> {
     use marvin::protocol::{Frame, PickSpec, PlaceSpec, WireGrasp, WireObject, WirePose};
     use marvin::server::{CellConfig, Server, ServerConfig};
-    let cell = CellConfig { world: args.world.clone(), seed: None, cam_from_base: None, expose_truth: true };
+    let cell =
+        CellConfig { world: args.world.clone(), seed: None, cam_from_base: None, expose_truth: true, cameras: None };
     let server = Server::start(ServerConfig::new(cell, "127.0.0.1:0".parse()?))?;
     let mut client = marvin::client::Client::connect(&server.addr().to_string(), std::time::Duration::from_secs(5))?;
     let hello = client.hello(None)?;

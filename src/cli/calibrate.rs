@@ -69,7 +69,13 @@ impl Cell {
         if let Some(addr) = connect {
             return Ok(Cell::Remote(addr.to_string()));
         }
-        let cell = CellConfig { world: world.to_path_buf(), seed: Some(seed), cam_from_base: None, expose_truth: true };
+        let cell = CellConfig {
+            world: world.to_path_buf(),
+            seed: Some(seed),
+            cam_from_base: None,
+            expose_truth: true,
+            cameras: None,
+        };
         Ok(Cell::Local(Server::start(ServerConfig::new(cell, "127.0.0.1:0".parse()?))?))
     }
 

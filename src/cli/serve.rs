@@ -16,6 +16,8 @@ pub struct ServeArgs {
     pub listen: SocketAddr,
     pub token_file: Option<PathBuf>,
     pub hand_eye: Option<PathBuf>,
+    /// A camera calibration file (`marvin calibrate cameras`) for `capture` to tell clients.
+    pub cameras: Option<PathBuf>,
     pub truth: bool,
     pub idle_timeout_s: f64,
 }
@@ -30,6 +32,7 @@ pub fn run(args: ServeArgs) -> anyhow::Result<()> {
         seed: args.seed,
         cam_from_base: args.hand_eye.as_deref().map(load_hand_eye).transpose()?,
         expose_truth: args.truth,
+        cameras: args.cameras.as_deref().map(super::calibrate::load_cameras).transpose()?,
     };
     let mut config = ServerConfig::new(cell, args.listen);
     config.token = token(args.token_file.as_deref())?;

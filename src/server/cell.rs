@@ -44,6 +44,10 @@ pub struct CellConfig {
     pub cam_from_base: Option<Isometry3<f64>>,
     /// Serve the `truth` op (evaluation and tests only).
     pub expose_truth: bool,
+    /// The cameras as measured (`--cameras`, from `marvin calibrate cameras`): what `capture`
+    /// tells clients, as a camera driver publishes its calibration file. Without them, the
+    /// cameras as the world file draws them.
+    pub cameras: Option<StereoCalibration>,
 }
 
 /// Runs the cell: loads and settles the world, reports that it is ready (or why it cannot be),
@@ -106,8 +110,11 @@ struct SimCell<'a> {
     work: &'a Workcell,
     pick: PickCell<'a>,
     /// How the cell's cameras form images (the world's realism preset); its `nominal`
-    /// calibration is what `capture` tells the client, its `rig` the truth.
+    /// calibration is what `capture` tells the client unless `cameras` were given, its `rig`
+    /// the truth.
     imaging: sim::imaging::Imaging,
+    /// The cameras as measured, if the server was given them (`--cameras`).
+    cameras: Option<StereoCalibration>,
     cam_from_base: Option<Isometry3<f64>>,
     expose_truth: bool,
     seed: u64,
@@ -178,6 +185,7 @@ impl<'a> SimCell<'a> {
             imaging: sim::imaging::Imaging::new(&scn.world),
             cam_from_base: config.cam_from_base,
             expose_truth: config.expose_truth,
+            cameras: config.cameras.clone(),
             seed,
             captures: 0,
             motions: 0,
@@ -299,7 +307,7 @@ impl<'a> SimCell<'a> {
         Ok(CaptureReply {
             left_png_b64: png_b64(&left.image, left.width, left.height)?,
             right_png_b64: png_b64(&right.image, right.width, right.height)?,
-            calibration: rig_calibration(&im.nominal),
+            calibration: rig_calibration(self.cameras.as_ref().unwrap_or(&im.nominal)),
             sim_time_s: self.pick.simulated_s,
         })
     }
@@ -682,8 +690,15 @@ impl<'a> SimCell<'a> {
 
 /// What the stereo head knows of itself: intrinsics, and the right camera in the left's frame.
 pub fn rig_calibration(calib: &StereoCalibration) -> RigCalibration {
-    let intrinsics =
-        |c: &PinholeCamera| Intrinsics { width: c.width, height: c.height, fx: c.fx, fy: c.fy, cx: c.cx, cy: c.cy };
+    let intrinsics = |c: &PinholeCamera| Intrinsics {
+        width: c.width,
+        height: c.height,
+        fx: c.fx,
+        fy: c.fy,
+        cx: c.cx,
+        cy: c.cy,
+        distortion: c.distortion.d(),
+    };
     let left_from_right = calib.left.world_from_cam.inverse() * calib.right.world_from_cam;
     RigCalibration {
         left: intrinsics(&calib.left),
