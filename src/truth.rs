@@ -89,6 +89,17 @@ impl EvalCameras {
         }
     }
 
+    /// Vision given measured cameras (a camera calibration's, lenses included), placed in the
+    /// world where the world file draws the left camera: the rig and the lenses are measured,
+    /// where the left camera truly stands is not (the hand-eye calibration's part).
+    pub fn measured(imaging: &sim::imaging::Imaging, measured: &StereoCalibration) -> EvalCameras {
+        let world_from_left = imaging.nominal.left.world_from_cam;
+        let mut vision = measured.clone();
+        vision.left.world_from_cam = world_from_left * measured.left.world_from_cam;
+        vision.right.world_from_cam = world_from_left * measured.right.world_from_cam;
+        EvalCameras { vision, ..EvalCameras::of(imaging) }
+    }
+
     /// Vision given the true pinholes exactly (no lens, as the ideal cell has).
     pub fn exact(calib: &StereoCalibration) -> EvalCameras {
         EvalCameras {

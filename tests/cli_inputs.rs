@@ -232,4 +232,8 @@ fn a_bad_camera_calibration_file_is_refused_naming_it() {
     }
     let e = stderr(&marvin(&["run", "worlds/ideal/widgets.toml", "--cameras", bad]));
     assert!(e.contains("height") || e.contains("left"), "the missing field is not named: {e}");
+    for verb in ["vision", "locate"] {
+        let o = marvin(&["eval", verb, "worlds/ideal/widgets.toml", "--scenes", "1", "--cameras", bad]);
+        assert!(!o.status.success() && stderr(&o).contains(bad), "eval {verb}: {}", stderr(&o));
+    }
 }

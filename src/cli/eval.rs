@@ -42,6 +42,10 @@ pub enum EvalTarget {
         no_deblur: bool,
         #[arg(long)]
         json: bool,
+        /// Vision sees through these measured cameras (`marvin calibrate cameras`' cameras.json,
+        /// placed where the world file draws the left camera) instead of the world file's.
+        #[arg(long)]
+        cameras: Option<PathBuf>,
     },
     /// Seeded end-to-end runs (`marvin run`), one calibration on the first seed's scene shared
     /// by all, each scene's outcome judged from the simulation's truth afterwards.
@@ -133,6 +137,9 @@ pub enum EvalTarget {
         no_deblur: bool,
         #[arg(long)]
         json: bool,
+        /// Vision sees through these measured cameras (as for `eval vision`).
+        #[arg(long)]
+        cameras: Option<PathBuf>,
     },
 }
 
@@ -160,12 +167,12 @@ pub enum EvalCalibrateWhat {
 }
 
 pub fn run(target: EvalTarget) -> anyhow::Result<()> {
-    let (world, scenes, seed, slices, deblur, json) = match target {
-        EvalTarget::Vision { world, scenes, seed, slices, no_deblur, json } => {
-            (world, scenes, seed, slices as usize, !no_deblur, json)
+    let (world, scenes, seed, slices, deblur, json, cameras) = match target {
+        EvalTarget::Vision { world, scenes, seed, slices, no_deblur, json, cameras } => {
+            (world, scenes, seed, slices as usize, !no_deblur, json, cameras)
         }
-        EvalTarget::Locate { world, scenes, seed, no_deblur, json } => {
-            return run_locate(&world, scenes, seed, &canny_params(!no_deblur), json);
+        EvalTarget::Locate { world, scenes, seed, no_deblur, json, cameras } => {
+            return run_locate(&world, scenes, seed, &canny_params(!no_deblur), json, cameras.as_deref());
         }
         EvalTarget::Pick { world, trials, seed, json } => return super::eval_pick::run(&world, trials, seed, json),
         EvalTarget::Run { world, scenes, seed, json } => return super::eval_run::eval(&world, scenes, seed, json),
@@ -181,8 +188,9 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
     };
     let scn = Scenario::load(&world)?;
     let imaging = sim::imaging::Imaging::new(&scn.world);
-    let cams = marvin::truth::EvalCameras::of(&imaging);
-    // What vision is given: the world file's cameras (the truth only in the ideal preset).
+    // What vision is given: the world file's cameras (the truth only in the ideal preset), or
+    // measured ones.
+    let cams = eval_cameras(&imaging, cameras.as_deref())?;
     let calib = cams.vision.clone();
     let (mut total, mut on_arm) = (DisparityStats::default(), DisparityStats::default());
     let mut lines = LineStats::default();
@@ -281,15 +289,27 @@ pub fn canny_params(deblur: bool) -> vision::CannyParams {
     vision::CannyParams { deblur, ..vision::CannyParams::default() }
 }
 
+/// The cameras vision is given, and the true ones: the world file's, or `cameras`' measured ones.
+pub fn eval_cameras(
+    imaging: &sim::imaging::Imaging,
+    cameras: Option<&std::path::Path>,
+) -> anyhow::Result<marvin::truth::EvalCameras> {
+    Ok(match cameras {
+        Some(path) => marvin::truth::EvalCameras::measured(imaging, &super::calibrate::load_cameras(path)?),
+        None => marvin::truth::EvalCameras::of(imaging),
+    })
+}
+
 /// Settles the scene of `seed`, renders it as `imaging` has the cell, and runs the sliced
-/// front end on it with the world file's (nominal) calibration.
+/// front end on it with the cameras `cams` gives vision.
 pub fn run_pipeline(
     scn: &Scenario,
     imaging: &sim::imaging::Imaging,
     seed: u64,
     canny: &vision::CannyParams,
+    cams: &marvin::truth::EvalCameras,
 ) -> Pipeline {
-    let cams = marvin::truth::EvalCameras::of(imaging);
+    let cams = cams.clone();
     let calib = &cams.vision;
     let (scene, settled) = super::output::settle(scn, seed);
     let (l, r) = imaging.render_stereo(&scene.render_scene(&scn.library, imaging), seed);
@@ -314,11 +334,13 @@ fn run_locate(
     seed: u64,
     canny: &vision::CannyParams,
     json: bool,
+    cameras: Option<&std::path::Path>,
 ) -> anyhow::Result<()> {
     use marvin::eval::{LocateStats, locate_stats, quantile, symmetries};
     let scn = Scenario::load(world)?;
     let imaging = sim::imaging::Imaging::new(&scn.world);
-    let calib = imaging.nominal.clone();
+    let cams = eval_cameras(&imaging, cameras)?;
+    let calib = cams.vision.clone();
     let models = matcher_models(&scn.library, None);
     let symmetry: BTreeMap<String, Vec<nalgebra::Isometry3<f64>>> =
         scn.library.models.values().map(|m| (m.name.clone(), symmetries(m))).collect();
@@ -329,7 +351,7 @@ fn run_locate(
     let (mut false_reports, mut missed) = (Vec::new(), Vec::new());
     for k in 0..scenes {
         let s = seed + k;
-        let p = run_pipeline(&scn, &imaging, s, canny);
+        let p = run_pipeline(&scn, &imaging, s, canny, &cams);
         unsettled += usize::from(!p.settled);
         let lines: Vec<vision::matcher::Seg> =
             p.front_end.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();

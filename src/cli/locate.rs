@@ -33,7 +33,7 @@ pub fn run(
     }
     let seed = seed.unwrap_or(scn.world.seed);
     let imaging = sim::imaging::Imaging::new(&scn.world);
-    let p = run_pipeline(&scn, &imaging, seed, canny);
+    let p = run_pipeline(&scn, &imaging, seed, canny, &marvin::truth::EvalCameras::of(&imaging));
     let calib = p.cams.vision.clone();
     let lines: Vec<Seg> = p.front_end.lines3d.iter().map(|l| Seg::new(l.start(), l.end())).collect();
     let sought = matcher_models(&scn.library, models.as_deref());
