@@ -6,6 +6,7 @@
 //! truth.
 
 use crate::client::Client;
+use crate::perception::decode_grey_png;
 use crate::protocol::{Frame, MoveTarget, WirePose};
 use anyhow::{Context, anyhow};
 use camera_calib::detect::{Dropped, detect};
@@ -220,8 +221,8 @@ fn visit(
         Err(e) => return Err(e.into()),
     }
     let capture = client.capture()?;
-    let left = decode(&capture.left_png_b64).context("the left image")?;
-    let right = decode(&capture.right_png_b64).context("the right image")?;
+    let left = decode_grey_png(&capture.left_png_b64).context("the left image")?;
+    let right = decode_grey_png(&capture.right_png_b64).context("the right image")?;
     *size = [left.width(), left.height()];
     let (l, r) = (detect(&left, board), detect(&right, board));
     let say = |d: &Result<_, Dropped>| match d {
@@ -235,10 +236,4 @@ fn visit(
         record.images = Some((left, right));
     }
     Ok(record)
-}
-
-fn decode(b64: &str) -> anyhow::Result<GrayImage> {
-    use base64::Engine;
-    let png = base64::engine::general_purpose::STANDARD.decode(b64).context("not base64")?;
-    Ok(image::load_from_memory_with_format(&png, image::ImageFormat::Png).context("not a PNG")?.into_luma8())
 }

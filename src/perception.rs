@@ -66,9 +66,14 @@ impl Pair {
     }
 }
 
-fn decode_png(b64: &str) -> anyhow::Result<GreyImage> {
+/// A capture's image (base64 of a PNG) as 8-bit grey.
+pub fn decode_grey_png(b64: &str) -> anyhow::Result<image::GrayImage> {
     let png = base64::engine::general_purpose::STANDARD.decode(b64).context("not base64")?;
-    let img = image::load_from_memory_with_format(&png, image::ImageFormat::Png).context("not a PNG")?.into_luma8();
+    Ok(image::load_from_memory_with_format(&png, image::ImageFormat::Png).context("not a PNG")?.into_luma8())
+}
+
+fn decode_png(b64: &str) -> anyhow::Result<GreyImage> {
+    let img = decode_grey_png(b64)?;
     let (w, h) = (img.width() as usize, img.height() as usize);
     GreyImage::new(w, h, img.into_raw()).ok_or_else(|| anyhow!("a {w}x{h} image with the wrong number of pixels"))
 }
