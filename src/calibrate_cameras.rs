@@ -63,6 +63,14 @@ pub struct CameraCalibration {
     pub size: [u32; 2],
 }
 
+impl CameraCalibration {
+    /// The cameras as vision takes them (the left camera is the `cam` frame), as they would be
+    /// read back from the files this calibration writes.
+    pub fn stereo_calibration(&self) -> mesh::StereoCalibration {
+        camera_calib::file::CamerasFile::from_solution(&self.solution, self.size).stereo_calibration()
+    }
+}
+
 /// Where the board's centre is carried, in the base frame (metres; z above the table's top):
 /// over the table's front half, towards the cameras, where a board raised this high is imaged
 /// near the middle of the pictures (over the table's centre, x 0.16-0.40, its top was cut off in

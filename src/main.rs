@@ -150,6 +150,11 @@ enum Command {
         /// "Edgels beside narrow faces"), for comparison.
         #[arg(long)]
         no_deblur: bool,
+        /// See through these measured cameras (`marvin calibrate cameras`' cameras.json, lenses
+        /// included), placed where the world file draws the left camera; without it, the
+        /// cameras as the world file draws them.
+        #[arg(long)]
+        cameras: Option<PathBuf>,
     },
     /// Settle a scene and pick one object with the simulated arm, planned from the object's true
     /// pose, into the first bin; reports `placed` or what went wrong (`unplanned`, `miss`,
@@ -318,9 +323,9 @@ fn main() -> std::process::ExitCode {
             stereo::geometry(calib.as_deref(), cameras.as_deref(), rectified, disparity)
                 .and_then(|g| stereo::run(&left, &right, &g, slices as usize, json, out.as_deref()))
         }
-        Command::Locate { world, seed, models, json, out, rerun, no_deblur } => {
+        Command::Locate { world, seed, models, json, out, rerun, no_deblur, cameras } => {
             let canny = eval::canny_params(!no_deblur);
-            locate::run(&world, seed, models, json, (out.as_deref(), rerun.as_deref()), &canny)
+            locate::run(locate::LocateArgs { world, seed, models, json, out, rerun, cameras }, &canny)
         }
         Command::Pick { world, object, all: _, model, seed, json, rerun } => {
             pick::run(&world, object, model.as_deref(), seed, json, rerun.as_deref())

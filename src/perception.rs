@@ -4,7 +4,7 @@
 //! flag alone. It sees only what the capture carries and the model library.
 
 use crate::protocol::{CaptureReply, Intrinsics, RigCalibration};
-use anyhow::{Context, anyhow};
+use anyhow::{Context, anyhow, bail};
 use base64::Engine;
 use mesh::{PinholeCamera, StereoCalibration};
 use nalgebra::Isometry3;
@@ -43,7 +43,8 @@ pub struct Pair {
 
 impl Pair {
     /// The pair of a capture, seen through `cameras` (a camera calibration's, lenses included)
-    /// or, without one, through the calibration the capture carries.
+    /// or, without one, through the calibration the capture carries (a server given a camera
+    /// calibration file); with neither, an error.
     pub fn from_capture(c: &CaptureReply, cameras: Option<&StereoCalibration>) -> anyhow::Result<Pair> {
         let left = decode_png(&c.left_png_b64).context("the left image")?;
         let right = decode_png(&c.right_png_b64).context("the right image")?;
@@ -60,7 +61,14 @@ impl Pair {
                 );
                 cameras.clone()
             }
-            None => stereo_calibration(&c.calibration)?,
+            None => match &c.calibration {
+                Some(rig) => stereo_calibration(rig)?,
+                None => bail!(
+                    "the capture carries no camera calibration (the robot server was started without \
+                     --cameras) and none was given: calibrate the cameras (`marvin calibrate cameras`) \
+                     and give their cameras.json with --cameras"
+                ),
+            },
         };
         Ok(Pair { left, right, calib })
     }
@@ -218,4 +226,53 @@ fn refined_in_stereo(
         let fitted = |_: usize, k: usize, _: &nalgebra::Point3<f64>| !checker_only || flag.is_marking(k);
         refine_in_views(flag, &pose, &views, (search, FINE_STOP), &fitted).unwrap_or(pose)
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tiny_png_b64() -> String {
+        use image::ImageEncoder;
+        let mut png = Vec::new();
+        image::codecs::png::PngEncoder::new(&mut png)
+            .write_image(&[0u8, 64, 128, 255], 2, 2, image::ExtendedColorType::L8)
+            .unwrap();
+        base64::engine::general_purpose::STANDARD.encode(png)
+    }
+
+    /// A capture with no camera model (a server not given a calibration file) and no cameras
+    /// of the client's own: vision refuses, and says where cameras come from. Nothing falls
+    /// back on a model the simulation knows.
+    #[test]
+    fn a_capture_without_cameras_is_refused_with_the_way_to_measure_them() {
+        let b64 = tiny_png_b64();
+        let capture =
+            CaptureReply { left_png_b64: b64.clone(), right_png_b64: b64, calibration: None, sim_time_s: 0.0 };
+        let err = Pair::from_capture(&capture, None).err().expect("no cameras, no pair");
+        let text = format!("{err:#}");
+        assert!(text.contains("no camera calibration") && text.contains("marvin calibrate cameras"), "{text}");
+        // Given cameras of the right size, the same capture decodes through them.
+        let camera = PinholeCamera {
+            width: 2,
+            height: 2,
+            fx: 10.0,
+            fy: 10.0,
+            cx: 1.0,
+            cy: 1.0,
+            world_from_cam: Isometry3::identity(),
+            distortion: mesh::distortion::PlumbBob::default(),
+        };
+        let right = PinholeCamera { world_from_cam: Isometry3::translation(0.2, 0.0, 0.0), ..camera.clone() };
+        let cameras = StereoCalibration { left: camera, right };
+        let pair = Pair::from_capture(&capture, Some(&cameras)).unwrap();
+        assert_eq!((pair.left.width, pair.calib.right.world_from_cam.translation.x), (2, 0.2));
+        // Cameras for another image size are refused.
+        let wrong = StereoCalibration {
+            left: PinholeCamera { width: 4, ..cameras.left.clone() },
+            right: PinholeCamera { width: 4, ..cameras.right.clone() },
+        };
+        let err = Pair::from_capture(&capture, Some(&wrong)).err().expect("wrong size");
+        assert!(format!("{err:#}").contains("4x2 images"), "{err:#}");
+    }
 }

@@ -432,7 +432,11 @@ pub struct RigCalibration {
 pub struct CaptureReply {
     pub left_png_b64: String,
     pub right_png_b64: String,
-    pub calibration: RigCalibration,
+    /// The cameras' calibration file, if the server was given one (`serve --cameras`), as a
+    /// camera driver publishes its calibration; without one the cameras are uncalibrated and
+    /// the client must measure them (`marvin calibrate cameras`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub calibration: Option<RigCalibration>,
     pub sim_time_s: f64,
 }
 

@@ -4,8 +4,10 @@
 
 use super::output::emit;
 use anyhow::Context;
+use camera_calib::file::CamerasFile;
 use hand_eye::HandEyeFile;
 use marvin::calibrate::{CalibrateConfig, Calibration, calibrate};
+use marvin::calibrate_cameras::CameraCalibration;
 use marvin::client::Client;
 use marvin::server::{CellConfig, Server, ServerConfig};
 use marvin::truth::AskTruth;
@@ -79,10 +81,6 @@ impl Cell {
         Ok(Cell::Local(Server::start(ServerConfig::new(cell, "127.0.0.1:0".parse()?))?))
     }
 
-    pub fn connect(&self) -> anyhow::Result<Client> {
-        Ok(self.connect_greeted()?.0)
-    }
-
     /// A greeted client, and the server's greeting.
     pub fn connect_greeted(&self) -> anyhow::Result<(Client, marvin::protocol::HelloReply)> {
         let addr = match self {
@@ -108,14 +106,20 @@ impl Cell {
     }
 }
 
-/// One calibration on `cell`; with a local cell, the truth evaluation needs.
+/// One calibration on `cell` through `config`'s cameras, or (without them) the cameras the
+/// server publishes or, failing that, measured first ([`super::session::cameras`]); with a
+/// local cell, the truth evaluation needs. A camera calibration made here comes back too.
 pub fn run_once(
     cell: &Cell,
     library: &mesh::Library,
     config: &CalibrateConfig,
+    quiet: bool,
     progress: &mut dyn FnMut(&str),
-) -> anyhow::Result<(Calibration, Truth)> {
-    let mut client = cell.connect()?;
+) -> anyhow::Result<(Calibration, Truth, Option<CameraCalibration>)> {
+    let (mut client, hello) = cell.connect_greeted()?;
+    let (cameras, measured) =
+        super::session::cameras(&mut client, &hello, library, config.cameras.as_ref(), config.seed, quiet, false)?;
+    let config = &CalibrateConfig { cameras: Some(cameras), ..config.clone() };
     let mut truth = Truth::default();
     let local = cell.is_local();
     let mut after_capture = |c: &mut Client, _k: usize| -> anyhow::Result<()> {
@@ -131,7 +135,7 @@ pub fn run_once(
     };
     let calibration = calibrate(&mut client, library, config, &mut after_capture, progress)?;
     client.bye()?;
-    Ok((calibration, truth))
+    Ok((calibration, truth, measured))
 }
 
 fn pose_json(p: &Isometry3<f64>) -> Value {
@@ -160,10 +164,17 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
             eprintln!("  {line}");
         }
     };
-    let (calibration, truth) = run_once(&cell, &scn.library, &config, &mut progress)?;
+    let (calibration, truth, measured) = run_once(&cell, &scn.library, &config, quiet, &mut progress)?;
     cell.stop()?;
     let file = HandEyeFile::from_solution(&calibration.solution);
     file.save(&args.out)?;
+    // Cameras measured on the way are kept beside the hand-eye file, for `--cameras` next time.
+    let cameras_dir = args.out.parent().unwrap_or(Path::new(".")).to_path_buf();
+    if let Some(m) = &measured {
+        CamerasFile::from_solution(&m.solution, m.size)
+            .save_all(&cameras_dir)
+            .with_context(|| format!("writing the camera calibration in {}", cameras_dir.display()))?;
+    }
     if let Some(path) = &args.rerun {
         record(path, &scn, &calibration, truth.cam_from_base.as_ref())?;
         if !args.json {
@@ -194,6 +205,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
             "residual_deg_rms": s.residual_deg_rms,
             "sigma": s.sigma,
             "out": args.out.display().to_string(),
+            "cameras_out": measured.as_ref().map(|_| cameras_dir.join("cameras.json").display().to_string()),
         });
         if let (Some(t), Some((mm, deg))) = (truth.cam_from_base, error) {
             doc["truth"] = json!({
@@ -224,6 +236,9 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
             "the flag moved {creep:.3} mm and turned {turn:.3} deg in the jaws between the first and last sighting"
         ))?;
     }
+    if measured.is_some() {
+        emit(&format!("wrote the cameras it calibrated first in {}", cameras_dir.join("cameras.json").display()))?;
+    }
     emit(&format!("wrote {}", args.out.display()))
 }
 
@@ -248,20 +263,39 @@ fn record(
     r.finish()
 }
 
-/// `marvin eval calibrate`: seeded calibrations, each on its own scene and poses.
-pub fn eval(world: &Path, trials: u64, seed: u64, poses: usize, json: bool) -> anyhow::Result<()> {
+/// `marvin eval calibrate`: seeded hand-eye calibrations, each on its own scene and poses,
+/// through `cameras` (a calibration file) or cameras measured once here.
+pub fn eval(
+    world: &Path,
+    (trials, seed, poses): (u64, u64, usize),
+    cameras: Option<&Path>,
+    json: bool,
+) -> anyhow::Result<()> {
     let scn = sim::Scenario::load(world)?;
     let (mut t_err, mut r_err, mut creep, mut turn) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let (mut used, mut total, mut failed, mut unsettled) = (0usize, 0usize, Vec::new(), 0usize);
+    // The cameras are measured once, on the first seed's scene, and seen through in every trial:
+    // they stand where the world file puts them in every scene.
+    let cameras = match cameras {
+        Some(path) => load_cameras(path)?,
+        None => {
+            let cell = Cell::start(world, seed, None)?;
+            let (mut client, hello) = cell.connect_greeted()?;
+            let (cameras, _) = super::session::cameras(&mut client, &hello, &scn.library, None, seed, true, false)?;
+            client.bye()?;
+            cell.stop()?;
+            cameras
+        }
+    };
     let progress = super::output::Progress::new(trials, json);
     for k in 0..trials {
         let s = seed + k;
-        let config = CalibrateConfig { poses, seed: s, ..CalibrateConfig::default() };
+        let config = CalibrateConfig { poses, seed: s, cameras: Some(cameras.clone()), ..CalibrateConfig::default() };
         let cell = Cell::start(world, s, None)?;
-        let outcome = run_once(&cell, &scn.library, &config, &mut |_| {});
+        let outcome = run_once(&cell, &scn.library, &config, true, &mut |_| {});
         cell.stop()?;
         match outcome {
-            Ok((c, truth)) => {
+            Ok((c, truth, _)) => {
                 let (mm, deg) = error_of(&c, &truth).context("a local server gives the truth")?;
                 t_err.push(mm);
                 r_err.push(deg);

@@ -70,7 +70,8 @@ pub enum EvalTarget {
         json: bool,
     },
     /// Seeded hand-eye calibrations (each on its own scene, with its own poses and sensor noise),
-    /// each through a robot server started here, against the simulation's truth.
+    /// each through a robot server started here, against the simulation's truth; through
+    /// cameras calibrated once from the board first (or `--cameras`).
     ///
     /// JSON keys: `translation_err_mm_median`, `_p90`, `rotation_err_deg_median`, `_p90` (the
     /// solved `cam_from_base` against the true one), `sightings_used_fraction` (poses whose
@@ -92,6 +93,10 @@ pub enum EvalTarget {
         /// Poses per calibration.
         #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u16).range(3..=500))]
         poses: u16,
+        /// See through these measured cameras (`marvin calibrate cameras`' cameras.json);
+        /// without it the cameras are calibrated once, on the first seed's scene.
+        #[arg(long)]
+        cameras: Option<PathBuf>,
         #[arg(long)]
         json: bool,
     },
@@ -181,9 +186,9 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
         } => {
             return super::calibrate_cameras::eval(&world, trials, seed, poses as usize, json);
         }
-        EvalTarget::Calibrate { what: None, world, trials, seed, poses, json } => {
+        EvalTarget::Calibrate { what: None, world, trials, seed, poses, cameras, json } => {
             let world = world.expect("clap requires the world without a subcommand");
-            return super::calibrate::eval(&world, trials, seed, poses as usize, json);
+            return super::calibrate::eval(&world, (trials, seed, poses as usize), cameras.as_deref(), json);
         }
     };
     let scn = Scenario::load(&world)?;

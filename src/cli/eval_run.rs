@@ -5,7 +5,7 @@
 
 use super::calibrate::Cell;
 use super::output::emit;
-use super::session::{HandEye, Watcher, failures, hand_eye, outcome_name, run_once};
+use super::session::{HandEye, Watcher, cameras, failures, hand_eye, outcome_name, run_once};
 use anyhow::Context;
 use marvin::calibrate::Calibration;
 use marvin::client::Client;
@@ -191,13 +191,14 @@ impl Watcher for Judge<'_> {
     }
 }
 
-/// `marvin eval run`: seeded end-to-end runs, one calibration (on the first seed's scene)
-/// shared by all: the cameras and the robot stand where the world file puts them in every scene.
+/// `marvin eval run`: seeded end-to-end runs, one camera calibration and one hand-eye
+/// calibration (on the first seed's scene) shared by all: the cameras and the robot stand where the world file puts them in every scene.
 pub fn eval(world: &Path, scenes: u64, seed: u64, json: bool) -> anyhow::Result<()> {
     let scn = sim::Scenario::load(world)?;
     let cell = Cell::start(world, seed, None)?;
-    let mut client = cell.connect()?;
-    let (cam_from_base, _) = hand_eye(&mut client, &scn.library, &HandEye::Calibrate, seed, true, None)?;
+    let (mut client, hello) = cell.connect_greeted()?;
+    let (cameras, _) = cameras(&mut client, &hello, &scn.library, None, seed, true, false)?;
+    let (cam_from_base, _) = hand_eye(&mut client, &scn.library, &HandEye::Calibrate, seed, true, &cameras)?;
     let calibration_error = calibration_error(&mut client, &cam_from_base)?;
     client.bye()?;
     cell.stop()?;
@@ -213,7 +214,7 @@ pub fn eval(world: &Path, scenes: u64, seed: u64, json: bool) -> anyhow::Result<
         let cell = Cell::start(world, s, None)?;
         let known = HandEye::Known(cam_from_base);
         let mut judge = Judge::new(true, &scn.library);
-        let config = RunConfig::default();
+        let config = RunConfig { cameras: Some(cameras.clone()), ..RunConfig::default() };
         let r = run_once(&cell, &scn, s, &known, &config, true, &mut |_| String::new(), None, &mut judge)?;
         cell.stop()?;
         let truth = judge.truth.context("a local server gives the truth")?;

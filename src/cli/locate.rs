@@ -9,17 +9,27 @@ use marvin::eval::{CORRECT_POS_M, CORRECT_ROT_DEG, pose_error, symmetries, visib
 use marvin::perception::part_params;
 use nalgebra::Isometry3;
 use sim::Scenario;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use vision::matcher::{MatchParams, Seg, locate_all};
 
-pub fn run(
-    world: &Path,
-    seed: Option<u64>,
-    models: Option<Vec<String>>,
-    json: bool,
-    (out, rerun): (Option<&Path>, Option<&Path>),
-    canny: &vision::CannyParams,
-) -> anyhow::Result<()> {
+/// The command's arguments.
+pub struct LocateArgs {
+    pub world: PathBuf,
+    pub seed: Option<u64>,
+    /// Only these models (default: every library model but the tools).
+    pub models: Option<Vec<String>>,
+    pub json: bool,
+    /// Folder for located.png.
+    pub out: Option<PathBuf>,
+    /// Where to record the scene for rerun, if anywhere.
+    pub rerun: Option<PathBuf>,
+    /// A camera calibration file (`marvin calibrate cameras`) vision sees through.
+    pub cameras: Option<PathBuf>,
+}
+
+pub fn run(args: LocateArgs, canny: &vision::CannyParams) -> anyhow::Result<()> {
+    let LocateArgs { world, seed, models, json, out, rerun, cameras } = args;
+    let (world, out, rerun) = (world.as_path(), out.as_deref(), rerun.as_deref());
     let scn = Scenario::load(world)?;
     if let Some(names) = &models {
         for n in names {
@@ -33,7 +43,7 @@ pub fn run(
     }
     let seed = seed.unwrap_or(scn.world.seed);
     let imaging = sim::imaging::Imaging::new(&scn.world);
-    let p = run_pipeline(&scn, &imaging, seed, canny, &marvin::truth::EvalCameras::of(&imaging));
+    let p = run_pipeline(&scn, &imaging, seed, canny, &super::eval::eval_cameras(&imaging, cameras.as_deref())?);
     let calib = p.cams.vision.clone();
     let lines: Vec<Seg> = p.front_end.lines3d.iter().map(|l| Seg::new(l.start(), l.end())).collect();
     let sought = matcher_models(&scn.library, models.as_deref());

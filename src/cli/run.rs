@@ -1,5 +1,6 @@
 //! `marvin run`: the main job. A robot server (in-process on loopback, or `--connect`ed), the
-//! hand-eye transform (from `--hand-eye`, or calibrated first), then pick cycles until the table
+//! cameras (from `--cameras`, as the server publishes them, or calibrated first from the board),
+//! the hand-eye transform (from `--hand-eye`, or calibrated next), then pick cycles until the table
 //! is clear ([`super::session`]); one line per cycle, a summary, and the stage times beside the
 //! paper's Table 1.
 
@@ -39,8 +40,8 @@ fn cycle_json(c: &Cycle) -> Value {
     })
 }
 
-/// A run that failed in a realistic cell, said so: vision there is given the cameras as the
-/// world file draws them, and on them it does not find the calibration flag yet.
+/// A run that failed in a realistic cell, said so: there the cameras are calibrated from the
+/// board, but vision does not yet find the hand-eye flag through them reliably.
 fn realistic_hint(e: anyhow::Error, scn: &sim::Scenario, args: &RunArgs) -> anyhow::Error {
     let effects = scn.world.effects();
     let calibrating = e.chain().any(|c| c.to_string() == "calibrating");
@@ -48,9 +49,9 @@ fn realistic_hint(e: anyhow::Error, scn: &sim::Scenario, args: &RunArgs) -> anyh
         return e;
     }
     e.context(format!(
-        "{} is a realistic cell (`realism`): vision is given its cameras as drawn, uncalibrated, and \
-         does not yet find the flag through them (README, \"The realistic cell\"); its ideal copy in \
-         worlds/ideal/ runs",
+        "{} is a realistic cell (`realism`): its cameras were calibrated from the board, but vision \
+         does not yet find the hand-eye flag in its images often enough (README, \"The realistic \
+         cell\"); its ideal copy in worlds/ideal/ runs",
         args.world.display()
     ))
 }

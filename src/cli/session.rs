@@ -1,13 +1,15 @@
-//! One run on a robot server, as `marvin run` and `marvin eval run` both make it: the hand-eye
-//! transform (known, from a file, or calibrated first), then the pick cycles, recorded if asked;
+//! One run on a robot server, as `marvin run` and `marvin eval run` both make it: the cameras
+//! (from a file, as the server publishes them, or calibrated first from the board), the hand-eye
+//! transform (known, from a file, or calibrated next), then the pick cycles, recorded if asked;
 //! and how a cycle's outcome is named. Evaluation watches through a [`Watcher`]; nothing the run
 //! decides comes from it.
 
 use super::calibrate::Cell;
 use anyhow::Context;
 use marvin::calibrate::{CalibrateConfig, Calibration, calibrate};
+use marvin::calibrate_cameras::{CameraCalibConfig, CameraCalibration, calibrate_cameras};
 use marvin::client::Client;
-use marvin::protocol::{PickOutcomeKind, WirePose};
+use marvin::protocol::{HelloReply, PickOutcomeKind, WirePose};
 use marvin::recording::Recording;
 use marvin::run::{Cycle, RunConfig, RunEvent, RunReport};
 use nalgebra::Isometry3;
@@ -42,6 +44,51 @@ pub trait Watcher {
     fn finished(&mut self, client: &mut Client, recording: Option<&mut Recording>) -> anyhow::Result<()>;
 }
 
+/// The cameras a run sees through: `given` (a calibration file), else the ones the server
+/// publishes (a server given a calibration file), else measured now from the board, as a cell's
+/// operator would before anything else. A measurement comes back with them (to record).
+pub fn cameras(
+    client: &mut Client,
+    hello: &HelloReply,
+    library: &mesh::Library,
+    given: Option<&mesh::StereoCalibration>,
+    seed: u64,
+    quiet: bool,
+    keep_images: bool,
+) -> anyhow::Result<(mesh::StereoCalibration, Option<CameraCalibration>)> {
+    if let Some(cameras) = given {
+        return Ok((cameras.clone(), None));
+    }
+    if let Some(rig) = client.capture()?.calibration {
+        if !quiet {
+            eprintln!("the cameras as the robot server publishes them (its --cameras file)");
+        }
+        return Ok((marvin::perception::stereo_calibration(&rig)?, None));
+    }
+    if !quiet {
+        eprintln!("the cameras are uncalibrated: calibrating them from the board first");
+    }
+    let config = CameraCalibConfig { seed, ..CameraCalibConfig::default() };
+    let table_top = hello.table_top_base_m.context("the robot server does not say where the table's top is")?;
+    let mut progress = |line: &str| {
+        if !quiet {
+            eprintln!("  cameras {line}");
+        }
+    };
+    let c = calibrate_cameras(client, table_top, library, &config, keep_images, &mut progress)
+        .context("calibrating the cameras")?;
+    if !quiet {
+        let s = &c.solution;
+        eprintln!(
+            "  cameras: {} board poses used, reprojection RMS {:.3} px, baseline {:.2} mm",
+            s.boards.iter().flatten().count(),
+            s.rms_px,
+            s.right_from_left.inverse().translation.vector.norm() * 1e3
+        );
+    }
+    Ok((c.stereo_calibration(), Some(c)))
+}
+
 /// The hand-eye transform: known, from a file, or calibrated now.
 pub fn hand_eye(
     client: &mut Client,
@@ -49,7 +96,7 @@ pub fn hand_eye(
     source: &HandEye,
     seed: u64,
     quiet: bool,
-    cameras: Option<&mesh::StereoCalibration>,
+    cameras: &mesh::StereoCalibration,
 ) -> anyhow::Result<(Isometry3<f64>, Option<Calibration>)> {
     if let HandEye::Known(x) = source {
         return Ok((*x, None));
@@ -58,7 +105,7 @@ pub fn hand_eye(
         let he = hand_eye::HandEyeFile::load(f)?;
         return Ok((he.cam_from_base.to_isometry(), None));
     }
-    let config = CalibrateConfig { seed, cameras: cameras.cloned(), ..CalibrateConfig::default() };
+    let config = CalibrateConfig { seed, cameras: Some(cameras.clone()), ..CalibrateConfig::default() };
     let mut progress = |line: &str| {
         if !quiet {
             eprintln!("  calibration {line}");
@@ -83,19 +130,25 @@ pub fn run_once(
     watcher: &mut dyn Watcher,
 ) -> anyhow::Result<RunReport> {
     let library = &scn.library;
-    let mut client = cell.connect()?;
-    let (cam_from_base, calibration) = hand_eye(&mut client, library, source, seed, quiet, config.cameras.as_ref())?;
+    let (mut client, hello) = cell.connect_greeted()?;
+    let (cameras, measured) =
+        cameras(&mut client, &hello, library, config.cameras.as_ref(), seed, quiet, recording.is_some())?;
+    let (cam_from_base, calibration) = hand_eye(&mut client, library, source, seed, quiet, &cameras)?;
+    let config = &RunConfig { cameras: Some(cameras), ..config.clone() };
     // The arm as the recording draws it, from the world file's URDF.
     let arm = match recording.is_some() {
         true => Some(marvin::pick::Workcell::new(scn)?.arm),
         false => None,
     };
     if let Some(r) = recording.as_deref_mut() {
+        if let Some(m) = &measured {
+            r.camera_calibration(m)?;
+        }
         match &calibration {
             Some(c) => r.calibration(c)?,
             None => r.calibration_known(&cam_from_base)?,
         }
-        r.bins(&client.hello(std::env::var("MARVIN_TOKEN").ok().as_deref())?.bin_boxes)?;
+        r.bins(&hello.bin_boxes)?;
         r.cell_layout(scn)?;
     }
     client.set_hand_eye(WirePose::new(None, &cam_from_base))?;

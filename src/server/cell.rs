@@ -45,8 +45,8 @@ pub struct CellConfig {
     /// Serve the `truth` op (evaluation and tests only).
     pub expose_truth: bool,
     /// The cameras as measured (`--cameras`, from `marvin calibrate cameras`): what `capture`
-    /// tells clients, as a camera driver publishes its calibration file. Without them, the
-    /// cameras as the world file draws them.
+    /// tells clients, as a camera driver publishes its calibration file. Without them the
+    /// cameras are uncalibrated: `capture` carries no calibration.
     pub cameras: Option<StereoCalibration>,
 }
 
@@ -109,9 +109,8 @@ struct SimCell<'a> {
     scn: &'a Scenario,
     work: &'a Workcell,
     pick: PickCell<'a>,
-    /// How the cell's cameras form images (the world's realism preset); its `nominal`
-    /// calibration is what `capture` tells the client unless `cameras` were given, its `rig`
-    /// the truth.
+    /// How the cell's cameras form images (the world's realism preset); its `rig` is the
+    /// truth, which no client is told.
     imaging: sim::imaging::Imaging,
     /// The cameras as measured, if the server was given them (`--cameras`).
     cameras: Option<StereoCalibration>,
@@ -157,8 +156,12 @@ const TOOL_CONTACT_FREQUENCY_HZ: f32 = 2000.0;
 /// Handovers tried before `take_tool` gives up, and how near the seated opening the jaws must
 /// close for the tool to count as seated (metres; seated, they closed within 0.003 mm of it; on
 /// a rim, 0.8 mm or more wide; dropped, 4 mm narrow). Over 30 calibrations one handover in 30
-/// left the flag unseated, and it fell.
-const HANDOVER_TRIES: usize = 3;
+/// left the flag unseated, and it fell: that is the first handover in a cell. Once a tool has
+/// been taken and stowed (the board before the flag, as `marvin run` does), the seat is a coin
+/// toss: 9 of 17 and 15 of 31 handovers seated the flag at the home pose (before and after a
+/// camera calibration); the outcome depends chaotically on the physics' history, and what
+/// carries it over was not found. Eight tries leave about 1 in 250 handovers failed.
+const HANDOVER_TRIES: usize = 8;
 const SEATED_TOLERANCE_M: f64 = 1e-4;
 
 /// Seconds the tool is left to settle onto its locators' walls under its weight once the
@@ -307,7 +310,7 @@ impl<'a> SimCell<'a> {
         Ok(CaptureReply {
             left_png_b64: png_b64(&left.image, left.width, left.height)?,
             right_png_b64: png_b64(&right.image, right.width, right.height)?,
-            calibration: rig_calibration(self.cameras.as_ref().unwrap_or(&im.nominal)),
+            calibration: self.cameras.as_ref().map(rig_calibration),
             sim_time_s: self.pick.simulated_s,
         })
     }
@@ -584,9 +587,11 @@ impl<'a> SimCell<'a> {
         ip.num_internal_pgs_iterations = TOOL_PGS_ITERATIONS;
         ip.contact_softness.natural_frequency = TOOL_CONTACT_FREQUENCY_HZ;
         let seated = 2.0 * tool.insert_reach();
+        let mut jaws = Vec::new();
         for _ in 0..HANDOVER_TRIES {
             let (body, inserts) = self.hand_in(&tool, model);
             let jaw = self.pick.arm.opening(&self.pick.cell);
+            jaws.push(format!("{:.2}", jaw * 1e3));
             if tool.inserts.iter().all(|i| i.is_empty()) || (jaw - seated).abs() <= SEATED_TOLERANCE_M {
                 let gripper_from_tool = tool.tool_from_gripper.inverse();
                 let shape = collision_shape(model);
@@ -600,8 +605,10 @@ impl<'a> SimCell<'a> {
         }
         self.restore_physics_after_tool();
         Err(internal(format!(
-            "the {name} did not seat in its jaw inserts in {HANDOVER_TRIES} handovers (the jaws close to {:.2} mm on it)",
-            seated * 1e3
+            "the {name} did not seat in its jaw inserts in {HANDOVER_TRIES} handovers (seated, the jaws close to {:.2} mm \
+             on it; they closed to {} mm)",
+            seated * 1e3,
+            jaws.join(", ")
         )))
     }
 
