@@ -107,7 +107,7 @@ impl Cell {
 }
 
 /// One calibration on `cell` through `config`'s cameras, or (without them) the cameras the
-/// server publishes or, failing that, measured first ([`super::session::cameras`]); with a
+/// server publishes or, failing that, measured first ([`super::cameras::cameras`]); with a
 /// local cell, the truth evaluation needs. A camera calibration made here comes back too.
 pub fn run_once(
     cell: &Cell,
@@ -118,7 +118,7 @@ pub fn run_once(
 ) -> anyhow::Result<(Calibration, Truth, Option<CameraCalibration>)> {
     let (mut client, hello) = cell.connect_greeted()?;
     let (cameras, measured) =
-        super::session::cameras(&mut client, &hello, library, config.cameras.as_ref(), config.seed, quiet, false)?;
+        super::cameras::cameras(&mut client, &hello, library, config.cameras.as_ref(), config.seed, quiet, false)?;
     let config = &CalibrateConfig { cameras: Some(cameras), ..config.clone() };
     let mut truth = Truth::default();
     let local = cell.is_local();
@@ -281,7 +281,7 @@ pub fn eval(
         None => {
             let cell = Cell::start(world, seed, None)?;
             let (mut client, hello) = cell.connect_greeted()?;
-            let (cameras, _) = super::session::cameras(&mut client, &hello, &scn.library, None, seed, true, false)?;
+            let (cameras, _) = super::cameras::cameras(&mut client, &hello, &scn.library, None, seed, true, false)?;
             client.bye()?;
             cell.stop()?;
             cameras

@@ -4,8 +4,9 @@
 //! camera); `marvin eval run` sums seeded runs.
 
 use super::calibrate::Cell;
+use super::cameras::cameras;
 use super::output::emit;
-use super::session::{HandEye, Watcher, cameras, failures, hand_eye, outcome_name, run_once};
+use super::session::{HandEye, Watcher, failures, hand_eye, outcome_name, run_once};
 use anyhow::Context;
 use marvin::calibrate::Calibration;
 use marvin::client::Client;

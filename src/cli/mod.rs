@@ -10,6 +10,7 @@
 //! - [`pick`]: physical picks with the simulated arm.
 //! - [`calibrate`]: hand-eye calibration through the robot server, and its evaluation.
 //! - [`calibrate_cameras`]: camera calibration from the board through the robot server.
+//! - [`cameras`]: where a client's cameras come from (a file, the server, or measured first).
 //! - [`serve`]: the simulated cell and the robot server behind a socket.
 //! - [`eval`], [`eval_pick`]: the pipeline over seeded scenes, against the truth.
 //! - [`bench`]: medians of how fast things run.
@@ -20,6 +21,7 @@ pub mod args;
 pub mod bench;
 pub mod calibrate;
 pub mod calibrate_cameras;
+pub mod cameras;
 pub mod edges;
 pub mod eval;
 pub mod eval_pick;

@@ -7,9 +7,8 @@
 use super::calibrate::Cell;
 use anyhow::Context;
 use marvin::calibrate::{CalibrateConfig, Calibration, calibrate};
-use marvin::calibrate_cameras::{CameraCalibConfig, CameraCalibration, calibrate_cameras};
 use marvin::client::Client;
-use marvin::protocol::{HelloReply, PickOutcomeKind, WirePose};
+use marvin::protocol::{PickOutcomeKind, WirePose};
 use marvin::recording::Recording;
 use marvin::run::{Cycle, RunConfig, RunEvent, RunReport};
 use nalgebra::Isometry3;
@@ -42,51 +41,6 @@ pub trait Watcher {
     fn before_pick(&mut self, client: &mut Client, cycle: usize, chosen: &Located) -> anyhow::Result<()>;
     /// The run is over.
     fn finished(&mut self, client: &mut Client, recording: Option<&mut Recording>) -> anyhow::Result<()>;
-}
-
-/// The cameras a run sees through: `given` (a calibration file), else the ones the server
-/// publishes (a server given a calibration file), else measured now from the board, as a cell's
-/// operator would before anything else. A measurement comes back with them (to record).
-pub fn cameras(
-    client: &mut Client,
-    hello: &HelloReply,
-    library: &mesh::Library,
-    given: Option<&mesh::StereoCalibration>,
-    seed: u64,
-    quiet: bool,
-    keep_images: bool,
-) -> anyhow::Result<(mesh::StereoCalibration, Option<CameraCalibration>)> {
-    if let Some(cameras) = given {
-        return Ok((cameras.clone(), None));
-    }
-    if let Some(rig) = client.capture()?.calibration {
-        if !quiet {
-            eprintln!("the cameras as the robot server publishes them (its --cameras file)");
-        }
-        return Ok((marvin::perception::stereo_calibration(&rig)?, None));
-    }
-    if !quiet {
-        eprintln!("the cameras are uncalibrated: calibrating them from the board first");
-    }
-    let config = CameraCalibConfig { seed, ..CameraCalibConfig::default() };
-    let table_top = hello.table_top_base_m.context("the robot server does not say where the table's top is")?;
-    let mut progress = |line: &str| {
-        if !quiet {
-            eprintln!("  cameras {line}");
-        }
-    };
-    let c = calibrate_cameras(client, table_top, library, &config, keep_images, &mut progress)
-        .context("calibrating the cameras")?;
-    if !quiet {
-        let s = &c.solution;
-        eprintln!(
-            "  cameras: {} board poses used, reprojection RMS {:.3} px, baseline {:.2} mm",
-            s.boards.iter().flatten().count(),
-            s.rms_px,
-            s.right_from_left.inverse().translation.vector.norm() * 1e3
-        );
-    }
-    Ok((c.stereo_calibration(), Some(c)))
 }
 
 /// The hand-eye transform: known, from a file, or calibrated now.
@@ -131,8 +85,15 @@ pub fn run_once(
 ) -> anyhow::Result<RunReport> {
     let library = &scn.library;
     let (mut client, hello) = cell.connect_greeted()?;
-    let (cameras, measured) =
-        cameras(&mut client, &hello, library, config.cameras.as_ref(), seed, quiet, recording.is_some())?;
+    let (cameras, measured) = super::cameras::cameras(
+        &mut client,
+        &hello,
+        library,
+        config.cameras.as_ref(),
+        seed,
+        quiet,
+        recording.is_some(),
+    )?;
     let (cam_from_base, calibration) = hand_eye(&mut client, library, source, seed, quiet, &cameras)?;
     let config = &RunConfig { cameras: Some(cameras), ..config.clone() };
     // The arm as the recording draws it, from the world file's URDF.
