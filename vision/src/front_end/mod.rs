@@ -3,6 +3,8 @@
 //!
 //! - [`canny`](mod@canny): Canny edges (sigma 1, separable Gaussian) located to sub-pixel acuity.
 //! - [`strings`]: edgels linked into ordered 8-connected edge strings.
+//! - [`photometric`]: the right camera's grey levels as the left's, measured from PMF's own
+//!   matches (cameras differ in gain, black level and response).
 //! - [`rectify`]: edge locations mapped into a parallel-camera geometry (rows are epipolars).
 //! - [`pmf`]: PMF stereo matching of rectified edgels.
 //! - [`lines2d`]: strings cut into straight lines by recursive fit and segment.
@@ -15,6 +17,7 @@
 pub mod canny;
 pub mod lines2d;
 pub mod lines3d;
+pub mod photometric;
 pub mod pipeline;
 pub mod pmf;
 pub mod rectify;

@@ -158,8 +158,18 @@ impl Rasters {
     }
 }
 
-/// Matches rectified left edgels to rectified right edgels.
+/// Matches rectified left edgels to rectified right edgels: once without comparing the grey
+/// levels beside them, to measure the cameras' photometric relation from those matches
+/// ([`super::photometric`]), then again with the right edgels' grey levels mapped through it.
 pub fn pmf(left: &[Edgel], right: &[Edgel], left_strings: &[EdgeString], p: &PmfParams) -> Vec<Match> {
+    let first = pmf_once(left, right, left_strings, &PmfParams { side_tolerance: f32::INFINITY, ..*p });
+    let relation = super::photometric::from_matches(left, right, &first);
+    let right: Vec<Edgel> = right.iter().map(|e| relation.map(e)).collect();
+    pmf_once(left, &right, left_strings, p)
+}
+
+/// One pass of PMF, the grey levels beside the edgels taken as they are.
+fn pmf_once(left: &[Edgel], right: &[Edgel], left_strings: &[EdgeString], p: &PmfParams) -> Vec<Match> {
     let (offsets, mut cands) = candidates(left, right, p);
     let has_candidates: Vec<bool> = (0..left.len()).map(|l| offsets[l + 1] > offsets[l]).collect();
     let neighbours = neighbourhoods(left, &has_candidates, p.support_radius, p.disparity_gradient_limit);
