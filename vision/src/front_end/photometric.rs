@@ -12,7 +12,6 @@
 //! Where the cameras are alike it comes out as the identity to within the sensor noise.
 
 use super::canny::Edgel;
-use super::pmf::Match;
 
 /// `left_grey = gain * right_grey + offset`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -40,13 +39,12 @@ const MIN_CUT: f32 = 2.0;
 /// Fit, cut, fit again this many times.
 const ROUNDS: usize = 3;
 
-/// The relation from the sides of `matches` (left and right edgel indices into `left`,
+/// The relation from the sides of matched edgels (`(left, right)` indices into `left`,
 /// `right`): both sides of every match, a line fitted with the outliers cut.
-pub fn from_matches(left: &[Edgel], right: &[Edgel], matches: &[Match]) -> Relation {
+pub fn from_matches(left: &[Edgel], right: &[Edgel], matches: impl Iterator<Item = (u32, u32)>) -> Relation {
     let samples: Vec<(f32, f32)> = matches
-        .iter()
-        .flat_map(|m| {
-            let (l, r) = (&left[m.left as usize], &right[m.right as usize]);
+        .flat_map(|(l, r)| {
+            let (l, r) = (&left[l as usize], &right[r as usize]);
             [(r.sides[0], l.sides[0]), (r.sides[1], l.sides[1])]
         })
         .collect();

@@ -163,7 +163,7 @@ impl Rasters {
 /// ([`super::photometric`]), then again with the right edgels' grey levels mapped through it.
 pub fn pmf(left: &[Edgel], right: &[Edgel], left_strings: &[EdgeString], p: &PmfParams) -> Vec<Match> {
     let first = pmf_once(left, right, left_strings, &PmfParams { side_tolerance: f32::INFINITY, ..*p });
-    let relation = super::photometric::from_matches(left, right, &first);
+    let relation = super::photometric::from_matches(left, right, first.iter().map(|m| (m.left, m.right)));
     let right: Vec<Edgel> = right.iter().map(|e| relation.map(e)).collect();
     pmf_once(left, &right, left_strings, p)
 }
