@@ -151,8 +151,8 @@ enum Command {
         #[arg(long)]
         no_deblur: bool,
         /// See through these measured cameras (`marvin calibrate cameras`' cameras.json, lenses
-        /// included), placed where the world file draws the left camera; without it, the
-        /// cameras as the world file draws them.
+        /// included), placed where the left camera truly stands (evaluation takes the hand-eye
+        /// calibration's part as known); without it, the cameras as the world file draws them.
         #[arg(long)]
         cameras: Option<PathBuf>,
     },

@@ -90,10 +90,12 @@ impl EvalCameras {
     }
 
     /// Vision given measured cameras (a camera calibration's, lenses included), placed in the
-    /// world where the world file draws the left camera: the rig and the lenses are measured,
-    /// where the left camera truly stands is not (the hand-eye calibration's part).
+    /// world where the left camera truly stands. Vision's `cam` frame is that camera's (its
+    /// images are); where it stands in the cell is the hand-eye calibration's to measure, and
+    /// `marvin run` uses that measurement. Placed where the world file draws it instead, every
+    /// report would carry the mounting's 2 mm and 0.15 deg, which vision cannot see.
     pub fn measured(imaging: &sim::imaging::Imaging, measured: &StereoCalibration) -> EvalCameras {
-        let world_from_left = imaging.nominal.left.world_from_cam;
+        let world_from_left = imaging.rig.left.pinhole.world_from_cam;
         let mut vision = measured.clone();
         vision.left.world_from_cam = world_from_left * measured.left.world_from_cam;
         vision.right.world_from_cam = world_from_left * measured.right.world_from_cam;

@@ -43,7 +43,8 @@ pub enum EvalTarget {
         #[arg(long)]
         json: bool,
         /// Vision sees through these measured cameras (`marvin calibrate cameras`' cameras.json,
-        /// placed where the world file draws the left camera) instead of the world file's.
+        /// placed where the left camera truly stands: evaluation takes the hand-eye calibration's
+        /// part as known) instead of the world file's.
         #[arg(long)]
         cameras: Option<PathBuf>,
     },

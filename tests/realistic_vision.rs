@@ -1,0 +1,75 @@
+//! Vision in the realistic cell (`worlds/widgets.toml`: lenses, two different sensors, a lamp
+//! with shadows, gloss, a textured table, cameras mounted off their drawing), through cameras
+//! measured from the board (`camera-calib/tests/fixtures/seed3_cameras.json`, a calibration of
+//! this cell on tuning seed 3), as `marvin eval vision|locate --cameras` runs it.
+//!
+//! The scenes are 310001-310010, never used for any choice. The front end is held to the vision
+//! issue's targets (0.95 of the disparities within 0.5 px, coverage 0.70): here 0.962 and
+//! 0.744. The matcher has not earned its target (0.97 located) yet: it located 0.671 of the
+//! parts on tuning seeds 101-120 and 0.725 here, with no false report; the limit below guards
+//! what it has (README, "The realistic cell").
+
+use std::process::Command;
+
+const CAMERAS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/camera-calib/tests/fixtures/seed3_cameras.json");
+
+fn eval(verb: &str) -> serde_json::Value {
+    let out = Command::new(env!("CARGO_BIN_EXE_marvin"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args([
+            "eval",
+            verb,
+            "worlds/widgets.toml",
+            "--scenes",
+            "10",
+            "--seed",
+            "310001",
+            "--cameras",
+            CAMERAS,
+            "--json",
+        ])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+#[test]
+fn the_front_end_matches_across_two_different_sensors() {
+    let doc = eval("vision");
+    let (within, coverage) = (doc["disparity_within_0_5px"].as_f64().unwrap(), doc["coverage"].as_f64().unwrap());
+    eprintln!("within 0.5 px {within:.3}, coverage {coverage:.3}");
+    assert!(within >= 0.95, "disparities within 0.5 px: {within:.3}");
+    assert!(coverage >= 0.70, "coverage: {coverage:.3}");
+}
+
+#[test]
+fn the_matcher_locates_parts_in_the_realistic_cell() {
+    let doc = eval("locate");
+    let (located, false_reports) =
+        (doc["located_fraction"].as_f64().unwrap(), doc["false_positive_fraction"].as_f64().unwrap());
+    eprintln!("located {located:.3}, false reports {false_reports:.3}");
+    assert!(located >= 0.55, "located: {located:.3}");
+    assert!(false_reports <= 0.03, "false reports: {false_reports:.3}");
+}
+
+/// The main job in the realistic cell, as a new user runs it (`marvin run worlds/widgets.toml`):
+/// the cameras calibrated from the board, the hand-eye transform through them, then the picks.
+/// Seed 310011, never used for a choice. Over seeds 300001-300010 (`marvin eval run`) 0.914 of
+/// the objects were cleared, the rest lost to slips in the jaws, with no wrong-model pick: the
+/// limit is that no pick goes to the wrong model and at most two parts are left.
+#[test]
+fn the_main_job_clears_the_realistic_table() {
+    let out = Command::new(env!("CARGO_BIN_EXE_marvin"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args(["run", "worlds/widgets.toml", "--seed", "310011", "--json"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let truth = &doc["truth"];
+    let (on_table, cleared) = (truth["on_table_at_start"].as_u64().unwrap(), truth["in_bin_at_end"].as_u64().unwrap());
+    eprintln!("{cleared} of {on_table} cleared; calibration {}", doc["calibration_error"]);
+    assert_eq!(truth["wrong_model_picks"].as_u64(), Some(0), "{truth}");
+    assert!(cleared + 2 >= on_table, "{cleared} of {on_table} cleared");
+}
