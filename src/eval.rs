@@ -339,6 +339,21 @@ pub fn pose_error(
 mod tests {
     use super::*;
 
+    /// Against the Wilson intervals of the literature (Newcombe 1998, table I: 81/263 gives
+    /// 0.2553-0.3662) and worked by hand (5/10: 0.2366-0.7634; 0/10: 0-0.2775).
+    #[test]
+    fn wilson_intervals_match_the_literature() {
+        let close = |got: [f64; 2], want: [f64; 2]| (got[0] - want[0]).abs() < 1e-4 && (got[1] - want[1]).abs() < 1e-4;
+        assert!(close(wilson95(81, 263), [0.2553, 0.3662]), "{:?}", wilson95(81, 263));
+        assert!(close(wilson95(5, 10), [0.2366, 0.7634]), "{:?}", wilson95(5, 10));
+        assert!(close(wilson95(0, 10), [0.0, 0.2775]), "{:?}", wilson95(0, 10));
+        assert_eq!(wilson95(0, 0), [0.0, 1.0]);
+        let mut doc = serde_json::json!({ "a": 0.5, "arm": { "b": 0.0 } });
+        add_intervals(&mut doc, &[("a", 5, 10), ("arm.b", 0, 10)]);
+        assert!(close(serde_json::from_value(doc["a_ci95"].clone()).unwrap(), [0.2366, 0.7634]), "{doc}");
+        assert!(doc["arm"]["b_ci95"].is_array(), "{doc}");
+    }
+
     #[test]
     fn symmetry_groups_of_the_library() {
         let lib = mesh::Library::load_default().unwrap();
@@ -416,6 +431,33 @@ impl LocateStats {
             t[0] += e;
             t[1] += l;
         }
+    }
+}
+
+/// The 95% Wilson score interval of a fraction of `k` in `n` trials (`[0, 1]` when `n` is 0).
+/// It assumes independent trials; matches and parts of one scene are not quite, so read it as
+/// a lower bound on the uncertainty.
+pub fn wilson95(k: usize, n: usize) -> [f64; 2] {
+    if n == 0 {
+        return [0.0, 1.0];
+    }
+    const Z: f64 = 1.959_963_984_540_054;
+    let (n, p) = (n as f64, k as f64 / n as f64);
+    let denominator = 1.0 + Z * Z / n;
+    let centre = (p + Z * Z / (2.0 * n)) / denominator;
+    let half = Z * (p * (1.0 - p) / n + Z * Z / (4.0 * n * n)).sqrt() / denominator;
+    [(centre - half).max(0.0), (centre + half).min(1.0)]
+}
+
+/// Puts `{key}_ci95` beside each fraction `key` of a report object, from its count: `(key, k,
+/// n)`. A key with a dot (`arm.wrong_matches`) is one in a nested object.
+pub fn add_intervals(report: &mut serde_json::Value, fractions: &[(&str, usize, usize)]) {
+    for &(key, k, n) in fractions {
+        let (object, name) = match key.split_once('.') {
+            Some((outer, inner)) => (&mut report[outer], inner),
+            None => (&mut *report, key),
+        };
+        object[format!("{name}_ci95")] = serde_json::json!(wilson95(k, n));
     }
 }
 

@@ -315,7 +315,7 @@ pub fn eval(
     }
     progress.finish();
     let q = |v: &[f64], p: f64| marvin::eval::quantile(v, p);
-    let report = json!({
+    let mut report = json!({
         "world": scn.world.name,
         "seeds": [seed, seed + trials - 1],
         "trials": trials,
@@ -331,5 +331,6 @@ pub fn eval(
         "failed": failed,
         "unsettled_scenes": unsettled,
     });
+    marvin::eval::add_intervals(&mut report, &[("sightings_used_fraction", used, total)]);
     if json { emit(&report.to_string()) } else { emit(&serde_json::to_string_pretty(&report)?) }
 }

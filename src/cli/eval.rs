@@ -1,4 +1,6 @@
-//! `marvin eval`: seeded scenes run through the pipeline and compared with ground truth.
+//! `marvin eval`: seeded scenes run through the pipeline and compared with ground truth. Every
+//! fraction counted over trials (not `coverage`, a length) comes with `<key>_ci95`, its 95%
+//! Wilson interval ([`marvin::eval::wilson95`]).
 
 use super::output::emit;
 use clap::Subcommand;
@@ -12,7 +14,7 @@ use std::path::PathBuf;
 pub enum EvalTarget {
     /// The vision front end: render, run, compare with ground truth.
     ///
-    /// JSON keys so far: `disparity_within_0_5px` and `wrong_matches` (fractions of matched
+    /// JSON keys (each fraction also as `<key>_ci95`, its 95% Wilson interval) so far: `disparity_within_0_5px` and `wrong_matches` (fractions of matched
     /// edgels whose disparity is within 0.5 px of the true one / more than 2 px off; at an
     /// occluding boundary the true disparity is the nearer surface's), `matches_per_scene`,
     /// `endpoint_err_mm_median` and `_p90` (3D line ends from the nearest true feature edge),
@@ -51,7 +53,7 @@ pub enum EvalTarget {
     /// Seeded end-to-end runs (`marvin run`), one calibration on the first seed's scene shared
     /// by all, each scene's outcome judged from the simulation's truth afterwards.
     ///
-    /// JSON keys: `cleared_fraction` (objects in the bin at the end of all objects on the table at
+    /// JSON keys (each fraction also as `<key>_ci95`, its 95% Wilson interval): `cleared_fraction` (objects in the bin at the end of all objects on the table at
     /// the start), `pick_success_rate` (placed of picks tried, every attempt counted),
     /// `first_attempt_success_rate` (of the first pick at each object, which object from the
     /// truth afterwards, the share placed), `attempts_per_object` (picks per object placed),
@@ -74,7 +76,7 @@ pub enum EvalTarget {
     /// each through a robot server started here, against the simulation's truth; through
     /// cameras calibrated once from the board first (or `--cameras`).
     ///
-    /// JSON keys: `translation_err_mm_median`, `_p90`, `rotation_err_deg_median`, `_p90` (the
+    /// JSON keys (each fraction also as `<key>_ci95`, its 95% Wilson interval): `translation_err_mm_median`, `_p90`, `rotation_err_deg_median`, `_p90` (the
     /// solved `cam_from_base` against the true one), `sightings_used_fraction` (poses whose
     /// sighting the solve used), `flag_creep_mm_max`, `_median` (how far the flag moved in the
     /// jaws between the first and last sighting, from the physics), `flag_turn_deg_max`,
@@ -105,7 +107,7 @@ pub enum EvalTarget {
     ///
     /// Clutter: each of `--trials` seeded scenes is cleared object by object, the highest first;
     /// an object whose pick fails is tried again once the others have gone (3 passes at most).
-    /// JSON keys: `cleared_fraction` (objects in the bin at the end, of all objects; this was
+    /// JSON keys (each fraction also as `<key>_ci95`, its 95% Wilson interval): `cleared_fraction` (objects in the bin at the end, of all objects; this was
     /// `success_rate`), `first_attempt_success_rate` (objects placed by their first pick),
     /// `pick_success_rate` (placed, of every pick tried), `attempts_per_object`, `failures`
     /// (every failed pick by kind, those later retried included: `unplanned`, `miss`, `slip`,
@@ -126,7 +128,7 @@ pub enum EvalTarget {
     },
     /// The model matcher on the front end's 3D lines: render, locate, compare with ground truth.
     ///
-    /// JSON keys: `located_fraction` (of objects with >= 30% of their feature-edge length
+    /// JSON keys (each fraction also as `<key>_ci95`, its 95% Wilson interval): `located_fraction` (of objects with >= 30% of their feature-edge length
     /// visible), `pos_err_mm_median`, `pos_err_mm_p90`, `rot_err_deg_median` (of correct reports,
     /// over each model's symmetries; correct = within 10 mm and 5 deg), `false_positive_fraction`
     /// (of all reports), `match_ms_median`, `located_by_model`, `unsettled_scenes`.
@@ -247,7 +249,7 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
             (k, v[v.len() / 2])
         })
         .collect();
-    let report = serde_json::json!({
+    let mut report = serde_json::json!({
         "world": scn.world.name,
         "realism": imaging.preset,
         "seeds": [seed, seed + scenes - 1],
@@ -269,6 +271,15 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
         "timings_ms": medians,
         "unsettled_scenes": unsettled,
     });
+    marvin::eval::add_intervals(
+        &mut report,
+        &[
+            ("disparity_within_0_5px", total.within_0_5px, total.evaluated),
+            ("wrong_matches", total.wrong, total.evaluated),
+            ("arm.disparity_within_0_5px", on_arm.within_0_5px, on_arm.evaluated),
+            ("arm.wrong_matches", on_arm.wrong, on_arm.evaluated),
+        ],
+    );
     if json { emit(&report.to_string()) } else { emit(&serde_json::to_string_pretty(&report)?) }
 }
 
@@ -382,7 +393,7 @@ fn run_locate(
         );
         total.add(&stats);
     }
-    let report = serde_json::json!({
+    let mut report = serde_json::json!({
         "world": scn.world.name,
         "realism": imaging.preset,
         "seeds": [seed, seed + scenes - 1],
@@ -398,5 +409,12 @@ fn run_locate(
         "false_reports": false_reports,
         "missed": missed,
     });
+    marvin::eval::add_intervals(
+        &mut report,
+        &[
+            ("located_fraction", total.located, total.eligible),
+            ("false_positive_fraction", total.false_positives, total.reports),
+        ],
+    );
     if json { emit(&report.to_string()) } else { emit(&serde_json::to_string_pretty(&report)?) }
 }

@@ -61,11 +61,13 @@ pub fn run(world: &Path, trials: u64, seed: u64, json: bool) -> anyhow::Result<(
 
 /// Placed of these picks, as a fraction.
 fn placed_fraction<'a>(picks: impl IntoIterator<Item = &'a PickOutcome>) -> f64 {
-    let (mut placed, mut all) = (0usize, 0usize);
-    for p in picks {
-        (placed, all) = (placed + p.placed as usize, all + 1);
-    }
+    let (placed, all) = placed_of(picks);
     placed as f64 / all.max(1) as f64
+}
+
+/// How many of `picks` placed their object, and of how many.
+fn placed_of<'a>(picks: impl IntoIterator<Item = &'a PickOutcome>) -> (usize, usize) {
+    picks.into_iter().fold((0, 0), |(placed, all), p| (placed + p.placed as usize, all + 1))
 }
 
 /// Failed picks by kind.
@@ -91,7 +93,14 @@ fn report(
     let by_model: BTreeMap<&String, f64> =
         models.iter().map(|m| (m, placed_fraction(single_picks.iter().copied().filter(|o| &o.model == m)))).collect();
     let simulated_s: f64 = attempts.iter().chain(&single_picks).map(|o| o.simulated_s).sum();
-    json!({
+    let cleared = objects.iter().filter(|o| o.cleared()).count();
+    let counts = [
+        ("cleared_fraction", (cleared, objects.len())),
+        ("first_attempt_success_rate", placed_of(objects.iter().filter_map(|o| o.attempts.first()))),
+        ("pick_success_rate", placed_of(attempts.iter().copied())),
+        ("single_success_rate", placed_of(single_picks.iter().copied())),
+    ];
+    let mut report = json!({
         "cleared_fraction": objects.iter().filter(|o| o.cleared()).count() as f64 / objects.len().max(1) as f64,
         "first_attempt_success_rate": placed_fraction(firsts),
         "pick_success_rate": placed_fraction(attempts.iter().copied()),
@@ -109,17 +118,27 @@ fn report(
         },
         "simulated_s": simulated_s,
         "wall_s": wall_s,
-    })
+    });
+    let fractions: Vec<(&str, usize, usize)> = counts.iter().map(|&(key, (k, n))| (key, k, n)).collect();
+    marvin::eval::add_intervals(&mut report, &fractions);
+    report
 }
 
 fn print_summary(r: &serde_json::Value) -> anyhow::Result<()> {
     let f = |k: &str| r[k].as_f64().unwrap_or(f64::NAN);
+    let ci = |k: &str| {
+        let v = &r[format!("{k}_ci95")];
+        format!("[{:.3}, {:.3}]", v[0].as_f64().unwrap_or(f64::NAN), v[1].as_f64().unwrap_or(f64::NAN))
+    };
     emit(&format!(
-        "clutter: {:.3} of {} objects cleared; {:.3} placed at the first attempt; {:.3} of {} picks placed ({:.2} an object)",
+        "clutter: {:.3} {} of {} objects cleared; {:.3} {} placed at the first attempt; {:.3} {} of {} picks placed ({:.2} an object)",
         f("cleared_fraction"),
+        ci("cleared_fraction"),
         r["objects"],
         f("first_attempt_success_rate"),
+        ci("first_attempt_success_rate"),
         f("pick_success_rate"),
+        ci("pick_success_rate"),
         r["picks"]["clutter"],
         f("attempts_per_object"),
     ))?;
@@ -127,7 +146,12 @@ fn print_summary(r: &serde_json::Value) -> anyhow::Result<()> {
         "  failures, every attempt: {}; of objects left on the table: {}",
         r["failures"], r["failures_left_on_table"]
     ))?;
-    emit(&format!("single objects: {:.3} of {} placed", f("single_success_rate"), r["picks"]["single"]))?;
+    emit(&format!(
+        "single objects: {:.3} {} of {} placed",
+        f("single_success_rate"),
+        ci("single_success_rate"),
+        r["picks"]["single"]
+    ))?;
     if let Some(by) = r["single_by_model"].as_object() {
         for (m, v) in by {
             emit(&format!("  {m:<10} {:.3}", v.as_f64().unwrap_or(f64::NAN)))?;

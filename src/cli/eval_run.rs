@@ -258,7 +258,7 @@ pub fn eval(world: &Path, scenes: u64, seed: u64, json: bool) -> anyhow::Result<
     }
     progress.finish();
     let q = |v: &[f64], p: f64| marvin::eval::quantile(v, p);
-    let report = json!({
+    let mut report = json!({
         "world": scn.world.name,
         "seeds": [seed, seed + scenes - 1],
         "scenes": scenes,
@@ -277,6 +277,14 @@ pub fn eval(world: &Path, scenes: u64, seed: u64, json: bool) -> anyhow::Result<
         "stopped_by": stops,
         "unsettled_scenes": unsettled,
     });
+    marvin::eval::add_intervals(
+        &mut report,
+        &[
+            ("cleared_fraction", cleared, on_table),
+            ("pick_success_rate", placed, picks),
+            ("first_attempt_success_rate", first_placed, first_attempts),
+        ],
+    );
     if json { emit(&report.to_string()) } else { emit(&serde_json::to_string_pretty(&report)?) }
 }
 
