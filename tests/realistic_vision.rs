@@ -5,9 +5,10 @@
 //!
 //! The scenes are 310001-310010, never used for any choice. The front end is held to the vision
 //! issue's targets (0.95 of the disparities within 0.5 px, coverage 0.70): here 0.962 and
-//! 0.744. The matcher has not earned its target (0.97 located) yet: it located 0.671 of the
-//! parts on tuning seeds 101-120 and 0.725 here, with no false report; the limit below guards
-//! what it has (README, "The realistic cell").
+//! 0.744. The matcher has not earned its target (0.97 located) yet: since it no longer judges
+//! a well-supported reading by its model's albedo it located 0.907 of the parts on tuning
+//! seeds 101-120 (0.671 before) and 0.942 here (0.725 before), with no false report; the
+//! limit below guards what it has (README, "The realistic cell").
 
 use std::process::Command;
 
@@ -49,7 +50,7 @@ fn the_matcher_locates_parts_in_the_realistic_cell() {
     let (located, false_reports) =
         (doc["located_fraction"].as_f64().unwrap(), doc["false_positive_fraction"].as_f64().unwrap());
     eprintln!("located {located:.3}, false reports {false_reports:.3}");
-    assert!(located >= 0.55, "located: {located:.3}");
+    assert!(located >= 0.85, "located: {located:.3}");
     assert!(false_reports <= 0.03, "false reports: {false_reports:.3}");
 }
 

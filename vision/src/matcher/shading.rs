@@ -141,9 +141,10 @@ pub const TURN_MISFIT: f64 = 5.0;
 /// and 3 against 2, 5 and 7 (measured before the light's consensus start, which put right
 /// the light of side-light seed 30012, where four correct reports had been dropped).
 pub const REJECT_MISFIT: f64 = 8.0;
-/// A report on more 3D evidence is dropped if what its faces show lies this far (as a share)
-/// from what the light predicts for its model's albedo ([`Light::albedo_factor`]); not turned
-/// (a turn would lose the 3D lines it lies along). What gives such a report away is its
+/// A rival on more 3D evidence fits the light only if what its faces show lies within this
+/// share of what the light predicts for its model's albedo ([`Light::albedo_factor`];
+/// [`fits_light`], for the merge's rival rule: [`judge_by_shading`] no longer drops a report
+/// on it). What gives such a report away is its
 /// albedo: an L-bracket read on a U-channel whose third arm is hidden lies along the channel's
 /// lines and edgels, but its faces show the channel's grey, 0.65 / 0.75 = 0.87 of a bracket's.
 /// Over the tuning seeds (`widgets.toml` 1-250, `dense.toml` and `side_light.toml` 1-100) the
@@ -219,12 +220,18 @@ pub(crate) fn judge_by_shading(
             let unpolished_shades = || {
                 unpolished.get(i).filter(|pose| **pose != report.cam_from_model).map(|pose| shades_of(i, model, pose))
             };
+            // A reading on this much 3D evidence stands: the only thing its faces could add
+            // is the grey of its model's material, and the matcher does not know it (a part's
+            // albedo is off its library value by up to 10-15%, a lamp's light falls off across
+            // the table). Judged by albedo to within 7%, it lost a quarter of the realistic
+            // cell's parts (`marvin eval locate worlds/widgets.toml --scenes 20 --seed 101
+            // --cameras <seed 1's>`: located 0.671 -> 0.907, no false report either way;
+            // `dense.toml` 0.482 -> 0.707, false reports 0.0075 -> 0.0051); in the ideal cell
+            // (seeds 101-130) `dense.toml` 0.944 -> 0.942 with false reports 0.0025 -> 0.005,
+            // `side_light.toml` false reports 0 -> 0.0048, `widgets.toml` unchanged: the
+            // L-brackets read on U-channels it caught there want other evidence (issue 48).
             if report.support_fraction >= max_support {
-                let albedo_off = |faces: &[FaceShade]| {
-                    light.albedo_factor(faces).is_some_and(|f| (f - 1.0).abs() > WELL_SUPPORTED_ALBEDO_OFF)
-                };
-                let off = albedo_off(&per[i]) && unpolished_shades().is_none_or(|faces| albedo_off(&faces));
-                return if off { Verdict::Dropped } else { Verdict::Stands };
+                return Verdict::Stands;
             }
             let Some(misfit) = light.misfit(&per[i]).filter(|m| *m > TURN_MISFIT) else { return Verdict::Stands };
             let misfit = match unpolished_shades().map(|faces| light.misfit(&faces)) {
@@ -427,10 +434,11 @@ mod tests {
 
     /// A U-channel beside the block, wedge and prism, read as itself and as an L-bracket lying
     /// along its lines (the bracket 5 mm along the channel's bar from it: its bar on the
-    /// channel's, its arm on one of the channel's arms). Each reading well supported in 3D, the
-    /// bracket's faces show the channel's albedo, not its own, and it alone is dropped.
+    /// channel's, its arm on one of the channel's arms). Each reading well supported in 3D
+    /// stands: the bracket's faces show the channel's albedo, not its own, but the matcher does
+    /// not judge a reading by its material's grey (an albedo is not known to better than 15%).
     #[test]
-    fn a_well_supported_reading_whose_faces_show_another_models_albedo_is_dropped() {
+    fn a_well_supported_reading_is_not_judged_by_its_models_albedo() {
         let (cam, mut objects) = scene();
         let channel_pose = Isometry3::from_parts(
             Vector3::new(0.02, 0.1, 0.8).into(),
@@ -459,7 +467,7 @@ mod tests {
         };
         assert_eq!(judged(report(&objects[3].0, channel_pose)), ["block", "wedge", "hex_prism", "u_channel"]);
         let bracket_pose = channel_pose * nalgebra::Translation3::new(-0.005, 0.0, 0.0);
-        assert_eq!(judged(report(&bracket, bracket_pose)), ["block", "wedge", "hex_prism"]);
+        assert_eq!(judged(report(&bracket, bracket_pose)), ["block", "wedge", "hex_prism", "l_bracket"]);
     }
 }
 
