@@ -3,7 +3,7 @@
 
 mod cli;
 
-use cli::{bench, calibrate, calibrate_cameras, edges, eval, locate, pick, render, run, serve, stereo};
+use cli::{bench, calibrate, calibrate_cameras, edges, eval, locate, locate_pair, pick, render, run, serve, stereo};
 
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
@@ -125,9 +125,16 @@ enum Command {
         out: Option<PathBuf>,
     },
     /// Render a scene, run the front end and the model matcher; list the located objects with
-    /// their errors against ground truth, the misses and the false reports.
+    /// their errors against ground truth, the misses and the false reports. Or, with `--left L
+    /// --right R --cameras FILE` and no world, any stereo pair: what was found, with no truth.
     Locate {
-        world: PathBuf,
+        #[arg(required_unless_present = "left", conflicts_with_all = ["left", "right"])]
+        world: Option<PathBuf>,
+        /// The left image of a pair from any cameras (with --right and --cameras, no world).
+        #[arg(long, requires_all = ["right", "cameras"])]
+        left: Option<PathBuf>,
+        #[arg(long, requires = "left")]
+        right: Option<PathBuf>,
         /// Seed (default: the world file's).
         #[arg(long)]
         seed: Option<u64>,
@@ -153,6 +160,7 @@ enum Command {
         /// See through these measured cameras (`marvin calibrate cameras`' cameras.json, lenses
         /// included), placed where the left camera truly stands (evaluation takes the hand-eye
         /// calibration's part as known); without it, the cameras as the world file draws them.
+        /// With --left/--right: the pair's cameras (cameras.json, or a scene.json).
         #[arg(long)]
         cameras: Option<PathBuf>,
     },
@@ -323,9 +331,20 @@ fn main() -> std::process::ExitCode {
             stereo::geometry(calib.as_deref(), cameras.as_deref(), rectified, disparity)
                 .and_then(|g| stereo::run(&left, &right, &g, slices as usize, json, out.as_deref()))
         }
-        Command::Locate { world, seed, models, json, out, rerun, no_deblur, cameras } => {
+        Command::Locate {
+            world: None,
+            left: Some(left),
+            right: Some(right),
+            cameras: Some(cameras),
+            models,
+            json,
+            ..
+        } => locate_pair::run(locate_pair::PairArgs { left, right, cameras, models, json }),
+        Command::Locate { world, seed, models, json, out, rerun, no_deblur, cameras, .. } => {
             let canny = eval::canny_params(!no_deblur);
-            locate::run(locate::LocateArgs { world, seed, models, json, out, rerun, cameras }, &canny)
+            anyhow::Context::context(world, "a world file, or --left, --right and --cameras").and_then(|world| {
+                locate::run(locate::LocateArgs { world, seed, models, json, out, rerun, cameras }, &canny)
+            })
         }
         Command::Pick { world, object, all: _, model, seed, json, rerun } => {
             pick::run(&world, object, model.as_deref(), seed, json, rerun.as_deref())

@@ -7,6 +7,7 @@
 //! - [`edges`]: Canny and edge strings of any image.
 //! - [`stereo`]: the front end on any stereo pair.
 //! - [`locate`]: render, front end and matcher on one scene, against the truth.
+//! - [`locate_pair`]: front end and matcher on any stereo pair and its cameras, no truth.
 //! - [`pick`]: physical picks with the simulated arm.
 //! - [`calibrate`]: hand-eye calibration through the robot server, and its evaluation.
 //! - [`calibrate_cameras`]: camera calibration from the board through the robot server.
@@ -27,6 +28,7 @@ pub mod eval;
 pub mod eval_pick;
 pub mod eval_run;
 pub mod locate;
+pub mod locate_pair;
 pub mod output;
 pub mod pick;
 pub mod render;
