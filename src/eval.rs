@@ -126,8 +126,11 @@ pub fn edgel_fates(
         vision::front_end::WORKSPACE_DEPTH_M.1,
     );
     let params = PmfParams { disparity_min, disparity_max, ..PmfParams::default() };
-    // The sliced front end keeps no whole-image list of rectified right edgels.
+    // The sliced front end keeps no whole-image list of rectified right edgels. Its grey
+    // levels are mapped to the left camera's as PMF maps them before its side test.
     let right = rect.rectify_edgels(vision::front_end::rectify::Side::Right, &fe.right.edgels);
+    let relation = vision::front_end::pmf::photometric_relation(&fe.left_rectified, &right, &fe.left_strings, &params);
+    let right: Vec<vision::Edgel> = right.iter().map(|e| relation.map(e)).collect();
     let mut matched = vec![None; fe.left.edgels.len()];
     // PMF once more over the whole image, to tell a candidate PMF refused from a match dropped
     // after it (by figural continuity along the right strings or for lying on no 3D line).

@@ -162,10 +162,21 @@ impl Rasters {
 /// levels beside them, to measure the cameras' photometric relation from those matches
 /// ([`super::photometric`]), then again with the right edgels' grey levels mapped through it.
 pub fn pmf(left: &[Edgel], right: &[Edgel], left_strings: &[EdgeString], p: &PmfParams) -> Vec<Match> {
-    let first = pmf_once(left, right, left_strings, &PmfParams { side_tolerance: f32::INFINITY, ..*p });
-    let relation = super::photometric::from_matches(left, right, first.iter().map(|m| (m.left, m.right)));
+    let relation = photometric_relation(left, right, left_strings, p);
     let right: Vec<Edgel> = right.iter().map(|e| relation.map(e)).collect();
     pmf_once(left, &right, left_strings, p)
+}
+
+/// The cameras' photometric relation as [`pmf`] measures it: from a first pass without the
+/// side test.
+pub fn photometric_relation(
+    left: &[Edgel],
+    right: &[Edgel],
+    left_strings: &[EdgeString],
+    p: &PmfParams,
+) -> super::photometric::Relation {
+    let first = pmf_once(left, right, left_strings, &PmfParams { side_tolerance: f32::INFINITY, ..*p });
+    super::photometric::from_matches(left, right, first.iter().map(|m| (m.left, m.right)))
 }
 
 /// One pass of PMF, the grey levels beside the edgels taken as they are.
