@@ -89,7 +89,7 @@ const TURN_DEG: f64 = 30.0;
 /// struck parts on the way between poses and was knocked out of the jaws (seeds 3, 4).
 const TABLE_CLEARANCE_M: f64 = 0.07;
 /// How far the jaws may close beyond where they held the board before it counts as lost (mm).
-const JAW_SLACK_MM: f64 = 1.0;
+pub const JAW_SLACK_MM: f64 = 1.0;
 /// How many times the board may leave the jaws in one calibration before it is given up.
 const MAX_LOSSES: usize = 4;
 /// Where the gripper takes the board (base frame; z above the table's top), pointing down.

@@ -74,14 +74,6 @@ pub fn hand_eye(
     Ok((c.solution.cam_from_base, Some(c)))
 }
 
-/// A hand-eye solution this uncertain (its own sigma of `cam_from_base`, mm and deg) gets a
-/// warning: picks planned through it miss. Through measured cameras the sigma was 0.07 mm /
-/// 0.009 deg in the ideal cell (seed 1) and 0.71 mm / 0.097 deg in the realistic one (seed 1);
-/// 10.6 mm / 1.5 deg on realistic tuning seed 3, whose calibration was 4.9 mm / 2.2 deg off.
-/// (A realistic batch run on a calibration 18 mm off cleared two thirds of its parts.)
-const UNCERTAIN_MM: f64 = 3.0;
-const UNCERTAIN_DEG: f64 = 0.3;
-
 /// What a hand-eye calibration says of itself: sightings used, residuals, sigmas, and a
 /// warning when it is too uncertain to pick by.
 pub fn hand_eye_summary(s: &hand_eye::Solution) -> Vec<String> {
@@ -94,10 +86,11 @@ pub fn hand_eye_summary(s: &hand_eye::Solution) -> Vec<String> {
         s.sigma.cam_from_base_mm,
         s.sigma.cam_from_base_deg
     )];
-    if s.sigma.cam_from_base_mm > UNCERTAIN_MM || s.sigma.cam_from_base_deg > UNCERTAIN_DEG {
+    if marvin::calibrate::too_uncertain(s) {
+        let (mm, deg) = (marvin::calibrate::UNCERTAIN_MM, marvin::calibrate::UNCERTAIN_DEG);
         lines.push(format!(
-            "warning: the hand-eye calibration is uncertain (sigma over {UNCERTAIN_MM} mm or {UNCERTAIN_DEG} deg): picks \
-             may miss; calibrate with more poses (`marvin calibrate --poses 40`) and run with --hand-eye"
+            "warning: the hand-eye calibration is uncertain (sigma over {mm} mm or {deg} deg) after every round of \
+             poses: picks may miss; calibrate with more poses (`marvin calibrate --poses 60`) and run with --hand-eye"
         ));
     }
     lines
