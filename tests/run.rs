@@ -33,8 +33,10 @@ fn server(seed: u64) -> (Server, Client, f64) {
 
 /// The cameras as measured once, in a cell of their own (seed 10001's), from the board: as a
 /// cell's cameras are calibrated before runs and each run reads the file (`marvin run
-/// --cameras`). Calibrated in the run's own cell, a board knocked out of the jaws falls into the
-/// clutter (seed 10002: it swept a block 18 cm), which is the calibration's doing, not the run's.
+/// --cameras`). Said plainly: this shape was chosen after seed 10002 failed with the cameras
+/// calibrated in the run's own cell (a board knocked out of the jaws fell into the clutter and
+/// swept a block 18 cm), so seed 10002 has been looked at for this test; the limits were not
+/// changed.
 fn measured_cameras(library: &mesh::Library) -> mesh::StereoCalibration {
     let (s, mut c, table_top) = server(10001);
     // The server tells nothing of its cameras: they are measured.

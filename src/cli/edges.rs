@@ -23,7 +23,15 @@ pub fn parse_sigma(s: &str) -> Result<f32, String> {
 }
 
 pub fn load_grey(path: &Path) -> anyhow::Result<GreyImage> {
+    load_grey_noting(path, &mut Vec::new())
+}
+
+/// As [`load_grey`]; a colour image is read as its luma, and `notes` is told so.
+pub fn load_grey_noting(path: &Path, notes: &mut Vec<String>) -> anyhow::Result<GreyImage> {
     let img = image::open(path).with_context(|| format!("{}: cannot read as an image", path.display()))?;
+    if img.color().has_color() {
+        notes.push(format!("{}: a colour image ({:?}), read as grey (its luma)", path.display(), img.color()));
+    }
     let grey = img.into_luma8();
     let (w, h) = (grey.width() as usize, grey.height() as usize);
     GreyImage::new(w, h, grey.into_raw())

@@ -2,11 +2,11 @@
 //! stereo pair, from any cameras: what was found (model, pose and grasp in the left camera's
 //! frame, support), with no truth to compare with.
 
+use super::edges::load_grey_noting;
 use super::output::emit;
-use anyhow::{Context, bail};
+use anyhow::bail;
 use marvin::perception::{Pair, front_end, locate_parts, part_models};
 use std::path::{Path, PathBuf};
-use vision::GreyImage;
 
 /// The command's arguments in this form.
 pub struct PairArgs {
@@ -16,18 +16,6 @@ pub struct PairArgs {
     pub cameras: PathBuf,
     pub models: Option<Vec<String>>,
     pub json: bool,
-}
-
-/// An image as grey: a colour image is read as its luma, and said so.
-fn load_grey(path: &Path, notes: &mut Vec<String>) -> anyhow::Result<GreyImage> {
-    let img = image::open(path).with_context(|| format!("{}: cannot read as an image", path.display()))?;
-    if img.color().has_color() {
-        notes.push(format!("{}: a colour image ({:?}), read as grey (its luma)", path.display(), img.color()));
-    }
-    let grey = img.into_luma8();
-    let (w, h) = (grey.width() as usize, grey.height() as usize);
-    GreyImage::new(w, h, grey.into_raw())
-        .with_context(|| format!("{}: pixel count does not match size", path.display()))
 }
 
 /// The cameras of a calibration file: the project's cameras.json, or a scene.json.
@@ -42,8 +30,8 @@ fn load_cameras(path: &Path) -> anyhow::Result<mesh::StereoCalibration> {
 
 pub fn run(args: PairArgs) -> anyhow::Result<()> {
     let mut notes = Vec::new();
-    let left = load_grey(&args.left, &mut notes)?;
-    let right = load_grey(&args.right, &mut notes)?;
+    let left = load_grey_noting(&args.left, &mut notes)?;
+    let right = load_grey_noting(&args.right, &mut notes)?;
     if (left.width, left.height) != (right.width, right.height) {
         bail!(
             "{} is {}x{} but {} is {}x{}: a stereo pair must match",
