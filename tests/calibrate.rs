@@ -19,7 +19,6 @@
 use marvin::calibrate::{CalibrateConfig, calibrate};
 use marvin::client::Client;
 use marvin::server::{CellConfig, Server, ServerConfig};
-use marvin::truth::AskTruth;
 use nalgebra::Isometry3;
 use std::time::Duration;
 
@@ -47,7 +46,7 @@ fn exact_cameras(world: &str) -> mesh::StereoCalibration {
 fn calibrate_seed(seed: u64) -> Outcome {
     let world = concat!(env!("CARGO_MANIFEST_DIR"), "/worlds/ideal/widgets.toml");
     let cell =
-        CellConfig { world: world.into(), seed: Some(seed), cam_from_base: None, expose_truth: true, cameras: None };
+        CellConfig { world: world.into(), seed: Some(seed), cam_from_base: None, expose_truth: false, cameras: None };
     let server = Server::start(ServerConfig::new(cell, "127.0.0.1:0".parse().unwrap())).unwrap();
     let mut client = Client::connect(&server.addr().to_string(), Duration::from_secs(5)).unwrap();
     client.hello(None).unwrap();
@@ -55,14 +54,14 @@ fn calibrate_seed(seed: u64) -> Outcome {
     let config = CalibrateConfig { seed, cameras: Some(exact_cameras(world)), ..CalibrateConfig::default() };
     // Evaluation listens at each capture for where the flag sits in the gripper.
     let mut flag_in_gripper: Vec<Isometry3<f64>> = Vec::new();
-    let mut after_capture = |c: &mut Client, _k: usize| -> anyhow::Result<()> {
-        let held = c.truth()?.tool_in_gripper.expect("the flag is held during the calibration");
+    let mut after_capture = |_: &mut Client, _k: usize| -> anyhow::Result<()> {
+        let held = server.truth()?.tool_in_gripper.expect("the flag is held during the calibration");
         flag_in_gripper.push(held.to_isometry("tool_in_gripper")?);
         Ok(())
     };
     let c = calibrate(&mut client, &library, &config, &mut after_capture, &mut |_| {}).unwrap();
     // Evaluation, after the fact.
-    let truth = client.truth().unwrap().cam_from_base.to_isometry("truth").unwrap();
+    let truth = server.truth().unwrap().cam_from_base.to_isometry("truth").unwrap();
     assert!(client.status().unwrap().holding.is_none(), "the flag was stowed");
     let s = &c.solution.cam_from_base;
     let (first, last) = (flag_in_gripper.first().unwrap(), flag_in_gripper.last().unwrap());

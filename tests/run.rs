@@ -18,13 +18,12 @@ use marvin::client::Client;
 use marvin::protocol::WirePose;
 use marvin::run::{RunConfig, Stop, run};
 use marvin::server::{CellConfig, Server, ServerConfig};
-use marvin::truth::AskTruth;
 use std::time::Duration;
 
 fn server(seed: u64) -> (Server, Client, f64) {
     let world = concat!(env!("CARGO_MANIFEST_DIR"), "/worlds/ideal/widgets.toml");
     let cell =
-        CellConfig { world: world.into(), seed: Some(seed), cam_from_base: None, expose_truth: true, cameras: None };
+        CellConfig { world: world.into(), seed: Some(seed), cam_from_base: None, expose_truth: false, cameras: None };
     let server = Server::start(ServerConfig::new(cell, "127.0.0.1:0".parse().unwrap())).unwrap();
     let mut client = Client::connect(&server.addr().to_string(), Duration::from_secs(5)).unwrap();
     let table_top = client.hello(None).unwrap().table_top_base_m.unwrap();
@@ -59,11 +58,11 @@ fn the_table_is_cleared_from_what_the_cameras_see() {
         let calibration = calibrate(&mut c, &library, &config, &mut |_, _| Ok(()), &mut |_| {}).unwrap();
         let cam_from_base = calibration.solution.cam_from_base;
         c.set_hand_eye(WirePose::new(None, &cam_from_base)).unwrap();
-        let on_table = c.truth().unwrap().objects.len();
+        let on_table = s.truth().unwrap().objects.len();
         let run_config = RunConfig { cameras: Some(cameras.clone()), ..RunConfig::default() };
         let report =
             run(&mut c, &library, &run_config, &cam_from_base, &mut |_, _, _| Ok(()), &mut |_| Ok(())).unwrap();
-        let truth = c.truth().unwrap();
+        let truth = s.truth().unwrap();
         let left: Vec<String> =
             truth.objects.iter().filter(|o| !o.in_bin).map(|o| format!("{} {}", o.id, o.model)).collect();
         eprintln!("seed {seed}: {} cycles, left on the table: {left:?}", report.cycles.len());

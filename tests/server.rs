@@ -413,3 +413,33 @@ fn capture_carries_the_measured_cameras_when_the_server_is_given_them() {
         }
     }
 }
+
+/// The server `marvin run` starts for itself answers a peer's `status` but not `truth`: the
+/// run's judge reads the truth in-process, so nothing on the socket can.
+#[test]
+fn the_server_a_run_starts_serves_no_truth() {
+    let world = concat!(env!("CARGO_MANIFEST_DIR"), "/worlds/ideal/widgets.toml");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_marvin"))
+        .args(["run", world, "--seed", "3"])
+        .env("RUST_LOG", "warn")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("marvin run starts");
+    let mut stderr = BufReader::new(child.stderr.take().unwrap());
+    let prefix = "the run's robot server listens on ";
+    let mut line = String::new();
+    let addr = loop {
+        line.clear();
+        assert!(stderr.read_line(&mut line).unwrap() > 0, "marvin run ended without naming its server");
+        if let Some(addr) = line.trim().strip_prefix(prefix) {
+            break addr.to_string();
+        }
+    };
+    let served = Served { child, addr };
+    let mut c = connect(&served);
+    c.hello(None).unwrap();
+    let refused = c.truth().unwrap_err();
+    assert_eq!(refused.wire().map(|e| e.code), Some(ErrorCode::BadRequest), "{refused}");
+    c.status().expect("the same connection still answers status");
+}

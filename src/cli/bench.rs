@@ -2,7 +2,6 @@
 
 use super::output::emit;
 use clap::{Args, Subcommand};
-use marvin::truth::AskTruth;
 use sim::{Scenario, Scene};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -322,7 +321,7 @@ fn server(args: &ServerBenchArgs) -> anyhow::Result<()> {
     use marvin::protocol::{Frame, PickSpec, PlaceSpec, WireGrasp, WireObject, WirePose};
     use marvin::server::{CellConfig, Server, ServerConfig};
     let cell =
-        CellConfig { world: args.world.clone(), seed: None, cam_from_base: None, expose_truth: true, cameras: None };
+        CellConfig { world: args.world.clone(), seed: None, cam_from_base: None, expose_truth: false, cameras: None };
     let server = Server::start(ServerConfig::new(cell, "127.0.0.1:0".parse()?))?;
     let mut client = marvin::client::Client::connect(&server.addr().to_string(), std::time::Duration::from_secs(5))?;
     let hello = client.hello(None)?;
@@ -338,7 +337,7 @@ fn server(args: &ServerBenchArgs) -> anyhow::Result<()> {
     ms.sort_by(f64::total_cmp);
     let quantile = |q: f64| ms[((ms.len() - 1) as f64 * q).round() as usize];
     // Every object planned from its true pose (a benchmark may read the truth), not moved.
-    let truth = client.truth()?;
+    let truth = server.truth()?;
     let base_from_world = truth.world_from_base.to_isometry("world_from_base")?.inverse();
     let library = mesh::Library::load_default()?;
     let in_base = |p: &WirePose| -> anyhow::Result<_> { Ok(base_from_world * p.to_isometry("world_from_model")?) };

@@ -10,7 +10,6 @@ use marvin::calibrate::{CalibrateConfig, Calibration, calibrate};
 use marvin::calibrate_cameras::CameraCalibration;
 use marvin::client::Client;
 use marvin::server::{CellConfig, Server, ServerConfig};
-use marvin::truth::AskTruth;
 use nalgebra::Isometry3;
 use serde_json::{Value, json};
 use std::path::{Path, PathBuf};
@@ -59,8 +58,9 @@ impl Truth {
     }
 }
 
-/// A server for one calibration: the one at `connect`, or one started here on loopback (for
-/// the world and seed, with its truth open to evaluation).
+/// A server for one calibration or run: the one at `connect`, or one started here on loopback
+/// for the world and seed. A local server's socket does not serve the `truth` op: evaluation
+/// reads the truth in-process ([`Cell::local`], [`Server::truth`]).
 pub enum Cell {
     Remote(String),
     Local(Server),
@@ -75,7 +75,7 @@ impl Cell {
             world: world.to_path_buf(),
             seed: Some(seed),
             cam_from_base: None,
-            expose_truth: true,
+            expose_truth: false,
             cameras: None,
         };
         Ok(Cell::Local(Server::start(ServerConfig::new(cell, "127.0.0.1:0".parse()?))?))
@@ -93,8 +93,12 @@ impl Cell {
         Ok((client, hello))
     }
 
-    pub fn is_local(&self) -> bool {
-        matches!(self, Cell::Local(_))
+    /// The server started here, if it was: evaluation asks it for the truth in-process.
+    pub fn local(&self) -> Option<&Server> {
+        match self {
+            Cell::Local(s) => Some(s),
+            Cell::Remote(_) => None,
+        }
     }
 
     pub fn stop(self) -> anyhow::Result<()> {
@@ -121,10 +125,10 @@ pub fn run_once(
         super::cameras::cameras(&mut client, &hello, library, config.cameras.as_ref(), config.seed, quiet, false)?;
     let config = &CalibrateConfig { cameras: Some(cameras), ..config.clone() };
     let mut truth = Truth::default();
-    let local = cell.is_local();
-    let mut after_capture = |c: &mut Client, _k: usize| -> anyhow::Result<()> {
-        if local {
-            let t = c.truth()?;
+    let local = cell.local();
+    let mut after_capture = |_: &mut Client, _k: usize| -> anyhow::Result<()> {
+        if let Some(server) = local {
+            let t = server.truth()?;
             if let Some(p) = t.tool_in_gripper {
                 truth.flag_in_gripper.push(p.to_isometry("tool_in_gripper")?);
             }

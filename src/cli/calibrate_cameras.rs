@@ -83,7 +83,7 @@ pub fn run(args: CamerasArgs) -> anyhow::Result<()> {
         eprintln!("calibrating the cameras: {} board poses, seed {seed}", config.poses);
     }
     let cell = Cell::start(&args.world, seed, args.connect.as_deref())?;
-    let local = cell.is_local();
+    let local = cell.local().is_some();
     let quiet = args.json;
     let mut progress = |line: &str| {
         if !quiet {

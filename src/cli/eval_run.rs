@@ -1,5 +1,6 @@
-//! Evaluation of end-to-end runs. A [`Judge`] watches a run on an in-process server through the
-//! server's evaluation-only `truth` request and judges it after the fact (what was on the table,
+//! Evaluation of end-to-end runs. A [`Judge`] watches a run on a server started in this process,
+//! reading the simulation's truth in-process ([`Server::truth`]; the socket does not serve it),
+//! and judges it after the fact (what was on the table,
 //! what each pick went for, what ended in the bin, how far the calibration was from the true
 //! camera); `marvin eval run` sums seeded runs.
 
@@ -9,11 +10,10 @@ use super::output::emit;
 use super::session::{HandEye, Watcher, failures, hand_eye, outcome_name, run_once};
 use anyhow::Context;
 use marvin::calibrate::Calibration;
-use marvin::client::Client;
 use marvin::protocol::TruthReply;
 use marvin::recording::Recording;
 use marvin::run::{Cycle, RunConfig, Stop};
-use marvin::truth::AskTruth;
+use marvin::server::Server;
 use nalgebra::Isometry3;
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
@@ -92,28 +92,43 @@ fn nearest_object(
 }
 
 /// How far a camera pose is from the true one: mm and degrees.
-fn calibration_error(client: &mut Client, cam_from_base: &Isometry3<f64>) -> anyhow::Result<(f64, f64)> {
-    let t = client.truth()?.cam_from_base.to_isometry("cam_from_base")?;
+fn calibration_error(server: &Server, cam_from_base: &Isometry3<f64>) -> anyhow::Result<(f64, f64)> {
+    let t = server.truth()?.cam_from_base.to_isometry("cam_from_base")?;
     Ok((
         (cam_from_base.translation.vector - t.translation.vector).norm() * 1e3,
         cam_from_base.rotation.angle_to(&t.rotation).to_degrees(),
     ))
 }
 
-/// Watches a run on a local server (and does nothing on a remote one, which opens no truth).
+/// Watches a run on a local server (and does nothing on a remote one, whose truth is not ours).
 pub struct Judge<'a> {
     library: &'a mesh::Library,
+    server: Option<&'a Server>,
+    verdict: Verdict,
+}
+
+/// What a [`Judge`] found, kept once its server has stopped.
+#[derive(Debug, Clone, Default)]
+pub struct Verdict {
     pub truth: Option<RunTruth>,
     /// The run's own calibration against the true camera, mm and degrees.
     pub calibration_error: Option<(f64, f64)>,
 }
 
 impl<'a> Judge<'a> {
-    /// A judge for a run on a local server (`local`), of objects from `library`.
-    pub fn new(local: bool, library: &'a mesh::Library) -> Judge<'a> {
-        Judge { library, truth: local.then(RunTruth::default), calibration_error: None }
+    /// A judge for a run on `server` (if it was started here), of objects from `library`.
+    pub fn new(server: Option<&'a Server>, library: &'a mesh::Library) -> Judge<'a> {
+        let verdict = Verdict { truth: server.map(|_| RunTruth::default()), calibration_error: None };
+        Judge { library, server, verdict }
     }
 
+    /// What it found; the server may stop now.
+    pub fn verdict(self) -> Verdict {
+        self.verdict
+    }
+}
+
+impl Verdict {
     /// The judgement in `marvin run --json`'s document.
     pub fn add_to(&self, doc: &mut Value) {
         if let Some(t) = &self.truth {
@@ -149,17 +164,16 @@ impl<'a> Judge<'a> {
 impl Watcher for Judge<'_> {
     fn started(
         &mut self,
-        client: &mut Client,
         cam_from_base: &Isometry3<f64>,
         calibration: Option<&Calibration>,
         recording: Option<&mut Recording>,
     ) -> anyhow::Result<()> {
-        let Some(t) = self.truth.as_mut() else { return Ok(()) };
-        let start = client.truth()?;
+        let (Some(t), Some(server)) = (self.verdict.truth.as_mut(), self.server) else { return Ok(()) };
+        let start = server.truth()?;
         t.on_table_at_start = start.objects.iter().filter(|o| !o.in_bin).count();
         t.unsettled = start.unsettled;
         if calibration.is_some() {
-            self.calibration_error = Some(calibration_error(client, cam_from_base)?);
+            self.verdict.calibration_error = Some(calibration_error(server, cam_from_base)?);
             if let Some(r) = recording {
                 r.true_camera(&start.cam_from_base.to_isometry("cam_from_base")?)?;
             }
@@ -167,9 +181,9 @@ impl Watcher for Judge<'_> {
         Ok(())
     }
 
-    fn before_pick(&mut self, client: &mut Client, cycle: usize, chosen: &Located) -> anyhow::Result<()> {
-        let Some(t) = self.truth.as_mut() else { return Ok(()) };
-        let now = client.truth()?;
+    fn before_pick(&mut self, cycle: usize, chosen: &Located) -> anyhow::Result<()> {
+        let (Some(t), Some(server)) = (self.verdict.truth.as_mut(), self.server) else { return Ok(()) };
+        let now = server.truth()?;
         t.picks.push(JudgedPick {
             cycle,
             model: chosen.model.clone(),
@@ -181,9 +195,9 @@ impl Watcher for Judge<'_> {
         Ok(())
     }
 
-    fn finished(&mut self, client: &mut Client, recording: Option<&mut Recording>) -> anyhow::Result<()> {
-        let Some(t) = self.truth.as_mut() else { return Ok(()) };
-        let end = client.truth()?;
+    fn finished(&mut self, recording: Option<&mut Recording>) -> anyhow::Result<()> {
+        let (Some(t), Some(server)) = (self.verdict.truth.as_mut(), self.server) else { return Ok(()) };
+        let end = server.truth()?;
         t.in_bin_at_end = end.objects.iter().filter(|o| o.in_bin).count();
         if let Some(r) = recording {
             r.truth(&end, self.library)?;
@@ -200,7 +214,7 @@ pub fn eval(world: &Path, scenes: u64, seed: u64, json: bool) -> anyhow::Result<
     let (mut client, hello) = cell.connect_greeted()?;
     let (cameras, _) = cameras(&mut client, &hello, &scn.library, None, seed, true, false)?;
     let (cam_from_base, _) = hand_eye(&mut client, &scn.library, &HandEye::Calibrate, seed, true, &cameras)?;
-    let calibration_error = calibration_error(&mut client, &cam_from_base)?;
+    let calibration_error = calibration_error(cell.local().context("a local server")?, &cam_from_base)?;
     client.bye()?;
     cell.stop()?;
     let progress = super::output::Progress::new(scenes, json);
@@ -214,11 +228,11 @@ pub fn eval(world: &Path, scenes: u64, seed: u64, json: bool) -> anyhow::Result<
         let clock = Instant::now();
         let cell = Cell::start(world, s, None)?;
         let known = HandEye::Known(cam_from_base);
-        let mut judge = Judge::new(true, &scn.library);
+        let mut judge = Judge::new(cell.local(), &scn.library);
         let config = RunConfig { cameras: Some(cameras.clone()), ..RunConfig::default() };
         let r = run_once(&cell, &scn, s, &known, &config, true, &mut |_| String::new(), None, &mut judge)?;
+        let truth = judge.verdict().truth.context("a local server gives the truth")?;
         cell.stop()?;
-        let truth = judge.truth.context("a local server gives the truth")?;
         let (p, ok) = (
             r.cycles.iter().filter(|c| c.chosen.is_some()).count(),
             r.cycles.iter().filter(|c| outcome_name(c) == "placed").count(),

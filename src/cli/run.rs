@@ -64,6 +64,10 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
     }
     let cell = Cell::start(&args.world, seed, args.connect.as_deref())?;
     let quiet = args.json;
+    if let (Some(server), false) = (cell.local(), quiet) {
+        // Another process may watch (`status`) while it runs; the socket serves no truth.
+        eprintln!("the run's robot server listens on {}", server.addr());
+    }
     let mut k = 0;
     let mut line = |c: &Cycle| {
         k += 1;
@@ -84,9 +88,10 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
     let config = RunConfig { max_cycles: args.max_cycles, cameras, ..RunConfig::default() };
     let source = args.hand_eye.clone().map_or(HandEye::Calibrate, HandEye::File);
     let mut recording = args.rerun.as_ref().map(Recording::start).transpose()?;
-    let mut judge = Judge::new(cell.is_local(), &scn.library);
+    let mut judge = Judge::new(cell.local(), &scn.library);
     let report = run_once(&cell, &scn, seed, &source, &config, quiet, &mut line, recording.as_mut(), &mut judge)
         .map_err(|e| realistic_hint(e, &scn, &args))?;
+    let verdict = judge.verdict();
     cell.stop()?;
     if let Some(r) = recording {
         r.finish()?;
@@ -118,11 +123,11 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
             "table1": rows,
             "parallel_efficiency": efficiency,
         });
-        judge.add_to(&mut doc);
+        verdict.add_to(&mut doc);
         return emit(&doc.to_string());
     }
     emit(&format!("stopped by {stop}: {placed} of {picks} picks placed; failures {:?}", failures(cycles)))?;
-    for line in judge.summary() {
+    for line in verdict.summary() {
         emit(&line)?;
     }
     super::output::table1(

@@ -26,21 +26,21 @@ pub enum HandEye {
     Known(Isometry3<f64>),
 }
 
-/// Who watches a run from outside it: evaluation, reading the simulation through the server's
-/// evaluation-only request, and judging after the fact. Nothing the run decides comes from it.
+/// Who watches a run from outside it: evaluation, reading the simulation in-process from the
+/// server it started (never over the socket), and judging after the fact. Nothing the run
+/// decides comes from it.
 pub trait Watcher {
     /// The hand-eye transform is known (`calibration` is the run's own, if it calibrated).
     fn started(
         &mut self,
-        client: &mut Client,
         cam_from_base: &Isometry3<f64>,
         calibration: Option<&Calibration>,
         recording: Option<&mut Recording>,
     ) -> anyhow::Result<()>;
     /// Just before cycle `cycle` picks `chosen`.
-    fn before_pick(&mut self, client: &mut Client, cycle: usize, chosen: &Located) -> anyhow::Result<()>;
+    fn before_pick(&mut self, cycle: usize, chosen: &Located) -> anyhow::Result<()>;
     /// The run is over.
-    fn finished(&mut self, client: &mut Client, recording: Option<&mut Recording>) -> anyhow::Result<()>;
+    fn finished(&mut self, recording: Option<&mut Recording>) -> anyhow::Result<()>;
 }
 
 /// The hand-eye transform: known, from a file, or calibrated now.
@@ -140,7 +140,7 @@ pub fn run_once(
         r.cell_layout(scn)?;
     }
     client.set_hand_eye(WirePose::new(None, &cam_from_base))?;
-    watcher.started(&mut client, &cam_from_base, calibration.as_ref(), recording.as_deref_mut())?;
+    watcher.started(&cam_from_base, calibration.as_ref(), recording.as_deref_mut())?;
     let mut sim_time = 0.0;
     let mut observe = |event: RunEvent<'_>| -> anyhow::Result<()> {
         match event {
@@ -168,12 +168,12 @@ pub fn run_once(
         }
         Ok(())
     };
-    let mut before_pick = |c: &mut Client, k: usize, l: &Located| watcher.before_pick(c, k, l);
+    let mut before_pick = |_: &mut Client, k: usize, l: &Located| watcher.before_pick(k, l);
     let report = marvin::run::run(&mut client, library, config, &cam_from_base, &mut before_pick, &mut observe)?;
     if let Some(r) = recording.as_deref_mut() {
         r.at(report.cycles.len(), sim_time);
     }
-    watcher.finished(&mut client, recording)?;
+    watcher.finished(recording)?;
     client.bye()?;
     Ok(report)
 }

@@ -42,7 +42,8 @@ pub struct CellConfig {
     pub seed: Option<u64>,
     /// A hand-eye transform known from the start (`--hand-eye`).
     pub cam_from_base: Option<Isometry3<f64>>,
-    /// Serve the `truth` op (evaluation and tests only).
+    /// Serve the `truth` op on the socket (`marvin serve --truth`: evaluation and tests from
+    /// another process). [`super::Server::truth`] answers in-process whatever this says.
     pub expose_truth: bool,
     /// The cameras as measured (`--cameras`, from `marvin calibrate cameras`): what `capture`
     /// tells clients, as a camera driver publishes its calibration file. Without them the
@@ -89,7 +90,8 @@ pub(crate) fn run(
     let _ = ready.send(Ok(()));
     cell.publish(&shared, false);
     for job in jobs {
-        let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| cell.serve(&job.request)));
+        let outcome =
+            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| cell.serve(&job.request, job.in_process)));
         let result = outcome.unwrap_or_else(|panic| {
             let why =
                 panic.downcast_ref::<String>().cloned().or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()));
@@ -197,7 +199,7 @@ impl<'a> SimCell<'a> {
         })
     }
 
-    fn serve(&mut self, request: &Request) -> Result<Value, WireError> {
+    fn serve(&mut self, request: &Request, in_process: bool) -> Result<Value, WireError> {
         match request {
             Request::Hello { .. } => json(Ok(self.hello())),
             Request::Capture {} => json(self.capture()),
@@ -210,7 +212,7 @@ impl<'a> SimCell<'a> {
             Request::Pick(spec) => json(self.pick(spec)),
             Request::TakeTool { tool } => json(self.take_tool(tool)),
             Request::StowTool {} => json(self.stow_tool()),
-            Request::Truth {} if self.expose_truth => json(Ok(self.truth())),
+            Request::Truth {} if self.expose_truth || in_process => json(Ok(self.truth())),
             Request::Truth {} => Err(WireError::new(
                 ErrorCode::BadRequest,
                 "`truth` is served only by a server started with --truth (evaluation)",

@@ -13,7 +13,7 @@
 pub mod cell;
 
 use crate::protocol::{
-    ErrorCode, IDLE_TIMEOUT_S, MAX_CONNECTIONS, MAX_LINE_BYTES, PROTOCOL, Request, StatusReply, WireError,
+    ErrorCode, IDLE_TIMEOUT_S, MAX_CONNECTIONS, MAX_LINE_BYTES, PROTOCOL, Request, StatusReply, TruthReply, WireError,
     parse_request, reply_line,
 };
 use anyhow::{Context, bail};
@@ -58,6 +58,9 @@ impl ServerConfig {
 pub(crate) struct CellJob {
     pub request: Request,
     pub reply: oneshot::Sender<Result<Value, WireError>>,
+    /// Asked by the process that started the server ([`Server::truth`]), not by a peer: the
+    /// `truth` op is answered to it whether or not the socket serves it.
+    pub in_process: bool,
 }
 
 /// What the cell and the connections share.
@@ -149,6 +152,21 @@ impl Server {
     /// The address it listens on (the port chosen, for `--listen 127.0.0.1:0`).
     pub fn addr(&self) -> SocketAddr {
         self.addr
+    }
+
+    /// The simulation's truth, asked in-process by the code that started the server (evaluation
+    /// judging a run after the fact): it never travels over the socket, which answers the
+    /// `truth` op only when the server was started with `--truth`. Waits behind a running job.
+    pub fn truth(&self) -> anyhow::Result<TruthReply> {
+        let (tx, rx) = oneshot::channel();
+        let job = CellJob { request: Request::Truth {}, reply: tx, in_process: true };
+        let sent = self.net.jobs.lock().unwrap_or_else(|e| e.into_inner()).send(job);
+        sent.map_err(|_| anyhow::anyhow!("the cell has stopped"))?;
+        let value = rx
+            .blocking_recv()
+            .context("the cell dropped the truth request")?
+            .map_err(|e| anyhow::anyhow!("truth: {e}"))?;
+        serde_json::from_value(value).context("the cell's truth")
     }
 
     /// Asks the server to stop (as an authorised `shutdown` does).
@@ -330,7 +348,8 @@ async fn handle(request: Request, net: &Net, authorised: &mut bool) -> (Result<V
 async fn ask_cell(request: Request, net: &Net) -> Result<Value, WireError> {
     let (tx, rx) = oneshot::channel();
     let motion = request.is_motion();
-    let sent = net.jobs.lock().unwrap_or_else(|e| e.into_inner()).send(CellJob { request, reply: tx });
+    let sent =
+        net.jobs.lock().unwrap_or_else(|e| e.into_inner()).send(CellJob { request, reply: tx, in_process: false });
     if sent.is_err() {
         if motion {
             net.shared.moving.store(false, Ordering::SeqCst);
