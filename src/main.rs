@@ -316,7 +316,7 @@ enum CalibrateWhat {
 fn main() -> std::process::ExitCode {
     let result = match Cli::parse().command {
         Command::Run { world, seed, connect, hand_eye, cameras, max_cycles, json, rerun, rerun_connect } => {
-            use marvin::recording::Sink;
+            use marvin::engine::recording::Sink;
             let rerun = match (rerun, rerun_connect) {
                 (Some(file), _) => Some(Sink::File(file)),
                 (None, Some(url)) => Some(Sink::Viewer(Some(url).filter(|u| !u.is_empty()))),

@@ -2,7 +2,7 @@
 //! server (`marvin serve`), as `docs/PROTOCOL.md` describes it: TCP, one JSON object per line.
 //!
 //! The types here are the protocol: the server parses requests into them and writes replies
-//! from them, the client ([`crate::client`]) writes requests from them and parses replies into
+//! from them, the client ([`crate::engine::client`]) writes requests from them and parses replies into
 //! them, so the two cannot drift. Everything a peer sends is checked here ([`parse_request`],
 //! [`WirePose::to_isometry`]) before anything acts on it.
 

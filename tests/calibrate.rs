@@ -16,8 +16,8 @@
 //! which this test (not the run path) reads from the world file. Through cameras measured from
 //! the board first, as `marvin run` does, `tests/run.rs` tests the whole.
 
-use marvin::calibrate::{CalibrateConfig, calibrate};
-use marvin::client::Client;
+use marvin::engine::calibrate::{CalibrateConfig, calibrate};
+use marvin::engine::client::Client;
 use marvin::server::{CellConfig, Server, ServerConfig};
 use nalgebra::Isometry3;
 use std::time::Duration;

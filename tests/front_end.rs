@@ -3,8 +3,8 @@
 //! Run on the ideal copy of the world (`worlds/ideal/`): these figures were measured in the ideal
 //! cell and vision has not yet earned them in the realistic one (README, "The realistic cell").
 
+use marvin::eval::truth::{EvalCameras, TruthScene};
 use marvin::eval::{ArmMask, DisparityStats, disparity_stats};
-use marvin::truth::{EvalCameras, TruthScene};
 use sim::render::{Light, RenderScene, render_stereo};
 use sim::{Scenario, Scene};
 use std::path::Path;

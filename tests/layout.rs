@@ -1,5 +1,7 @@
 //! The layout's rules, checked on the sources: no circle of imports between the files of any
-//! crate, and the vision front end importing nothing of the matcher.
+//! crate; the vision front end importing nothing of the matcher; the root library's two sides of
+//! the socket (`src/engine`, the MARVIN side, and `src/server`, the robot server) naming each
+//! other only through `protocol`; and no source file over [`MAX_LINES`] lines.
 //!
 //! A file "imports" another when it names a path into it (`use crate::a::b`, `super::c::d`,
 //! `crate::a::f(..)` in an expression). Paths are read with a simple scanner, not a parser:
@@ -7,6 +9,12 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
+
+/// The workspace's members (`.` is the root package).
+const MEMBERS: [&str; 7] = ["mesh", "sim", "vision", "robot", "hand-eye", "camera-calib", "."];
+
+/// The most lines a source file may have: more than one reader can hold.
+const MAX_LINES: usize = 800;
 
 /// A crate's source files by module path (`["front_end", "pmf"]`).
 struct CrateFiles {
@@ -40,7 +48,7 @@ fn module_of(src: &Path, file: &Path) -> Vec<String> {
 fn crates() -> Vec<CrateFiles> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut out = Vec::new();
-    for member in ["mesh", "sim", "vision", "robot", "hand-eye", "."] {
+    for member in MEMBERS {
         let src = root.join(member).join("src");
         let mut files = Vec::new();
         rust_files(&src, &mut files);
@@ -214,4 +222,84 @@ fn the_scanner_finds_a_circle_and_resolves_super() {
     assert_eq!(find_circle(&graph).map(|c| c.len()), Some(4));
     graph.insert(m("c"), BTreeSet::new());
     assert_eq!(find_circle(&graph), None);
+}
+
+/// The side of the socket a module of the root library is on, if it is on one.
+fn side_of(module: &[String]) -> Option<&'static str> {
+    match module.first().map(String::as_str) {
+        Some("engine") => Some("the MARVIN side"),
+        Some("server") => Some("the robot server"),
+        _ => None,
+    }
+}
+
+/// Every import from one side of the socket into the other.
+fn crossings(graph: &BTreeMap<Vec<String>, BTreeSet<Vec<String>>>) -> Vec<(Vec<String>, Vec<String>)> {
+    let mut out = Vec::new();
+    for (module, targets) in graph {
+        for t in targets {
+            if let (Some(a), Some(b)) = (side_of(module), side_of(t))
+                && a != b
+            {
+                out.push((module.clone(), t.clone()));
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn neither_side_of_the_socket_imports_the_other() {
+    let root = crates().into_iter().find(|c| c.name == ". (lib)").unwrap();
+    let graph = import_graph(&root);
+    assert!(graph.keys().any(|m| side_of(m) == Some("the MARVIN side")), "no src/engine: the layout moved");
+    assert!(graph.keys().any(|m| side_of(m) == Some("the robot server")), "no src/server: the layout moved");
+    let found: Vec<String> = crossings(&graph)
+        .iter()
+        .map(|(a, b)| format!("{} ({}) imports {} ({})", show(a), side_of(a).unwrap(), show(b), side_of(b).unwrap()))
+        .collect();
+    assert!(found.is_empty(), "only `protocol` is shared between the sides: {found:#?}");
+}
+
+/// The rule itself: a crossing either way is found; imports of `protocol` or within a side are not.
+#[test]
+fn a_crossing_of_the_socket_is_found() {
+    let m = |s: &str| s.split("::").map(String::from).collect::<Vec<_>>();
+    let mut graph = BTreeMap::new();
+    graph.insert(m("engine::run"), BTreeSet::from([m("protocol"), m("engine::client")]));
+    graph.insert(m("server::cell"), BTreeSet::from([m("protocol"), m("server::pick")]));
+    assert!(crossings(&graph).is_empty());
+    graph.insert(m("engine::run"), BTreeSet::from([m("server::pick")]));
+    graph.insert(m("server"), BTreeSet::from([m("engine::perception")]));
+    assert_eq!(crossings(&graph).len(), 2);
+}
+
+/// Every Rust source of the workspace: each member's `src`, and the root's tests, examples and
+/// benches.
+fn all_sources() -> Vec<PathBuf> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut files = Vec::new();
+    for member in MEMBERS {
+        for dir in ["src", "tests", "examples", "benches"] {
+            let d = root.join(member).join(dir);
+            if d.is_dir() {
+                rust_files(&d, &mut files);
+            }
+        }
+    }
+    files.sort();
+    files.dedup();
+    files
+}
+
+#[test]
+fn no_source_file_is_over_800_lines() {
+    let long: Vec<String> = all_sources()
+        .iter()
+        .filter_map(|f| {
+            let n = std::fs::read_to_string(f).unwrap().lines().count();
+            (n > MAX_LINES).then(|| format!("{} ({n} lines)", f.display()))
+        })
+        .collect();
+    assert!(long.is_empty(), "split these along their seams (at most {MAX_LINES} lines): {long:#?}");
 }

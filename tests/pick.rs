@@ -5,7 +5,7 @@
 //! Run on the ideal copy of the world (`worlds/ideal/`): these figures were measured in the ideal
 //! cell and vision has not yet earned them in the realistic one (README, "The realistic cell").
 
-use marvin::pick::{PickCell, clear_scene, load, pickable_models, single_object_scenario};
+use marvin::server::pick::{PickCell, clear_scene, load, pickable_models, single_object_scenario};
 use nalgebra::Isometry3;
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};

@@ -12,11 +12,11 @@
 //! Run on the ideal copy of the world (`worlds/ideal/`): these figures were measured in the ideal
 //! cell and vision has not yet earned them in the realistic one (README, "The realistic cell").
 
-use marvin::calibrate::{CalibrateConfig, calibrate};
-use marvin::calibrate_cameras::{CameraCalibConfig, calibrate_cameras};
-use marvin::client::Client;
+use marvin::engine::calibrate::{CalibrateConfig, calibrate};
+use marvin::engine::calibrate_cameras::{CameraCalibConfig, calibrate_cameras};
+use marvin::engine::client::Client;
+use marvin::engine::run::{RunConfig, Stop, run};
 use marvin::protocol::WirePose;
-use marvin::run::{RunConfig, Stop, run};
 use marvin::server::{CellConfig, Server, ServerConfig};
 use std::time::Duration;
 

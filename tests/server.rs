@@ -2,11 +2,11 @@
 //! whole session (ending with an object picked from a true pose and lying in the bin), and
 //! through every kind of hostile input, after which it still answers and nothing has moved.
 
-use marvin::client::Client;
+use marvin::engine::client::Client;
+use marvin::eval::truth::AskTruth;
 use marvin::protocol::{
     ErrorCode, Frame, MoveTarget, PickOutcomeKind, PickSpec, PlaceSpec, TruthReply, WireGrasp, WireObject, WirePose,
 };
-use marvin::truth::AskTruth;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use serde_json::Value;
 use std::io::{BufRead, BufReader, Read, Write};

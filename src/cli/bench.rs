@@ -144,14 +144,14 @@ fn ten_objects(mut scn: Scenario) -> Scenario {
 }
 
 fn physics(args: &PhysicsArgs) -> anyhow::Result<()> {
-    let (scn, work) = marvin::pick::load(&args.world)?;
+    let (scn, work) = marvin::server::pick::load(&args.world)?;
     let scn = ten_objects(scn);
     let mut factors = Vec::new();
     let (mut simulated, mut wall, mut placed, mut picks) = (0.0, 0.0, 0, 0);
     for seed in 1..=args.runs.max(1) {
         let scene = Scene::settle(&scn, seed);
         let started = Instant::now();
-        let objects = marvin::pick::clear_scene(&scn, &work, &scene)?;
+        let objects = marvin::server::pick::clear_scene(&scn, &work, &scene)?;
         let w = started.elapsed().as_secs_f64();
         let outcomes: Vec<_> = objects.iter().flat_map(|o| &o.attempts).collect();
         let s: f64 = outcomes.iter().map(|o| o.simulated_s).sum();
@@ -270,7 +270,7 @@ fn vision(args: &BenchArgs) -> anyhow::Result<()> {
     // left image's edgels for verification; and the whole cycle, stereo pair in, located
     // objects out.
     let models = super::eval::matcher_models(&s.scn.library, None);
-    let mp = marvin::perception::part_params(Some(&s.calib.left.cam_from_world()));
+    let mp = marvin::engine::perception::part_params(Some(&s.calib.left.cam_from_world()));
     let fe = vision::front_end::slices::run_sliced(&left, &right, &s.calib, &params, 8);
     let lines: Vec<vision::matcher::Seg> =
         fe.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
@@ -308,7 +308,7 @@ fn table1(args: &BenchArgs, results: &[(&str, f64)], sliced: &mut StageTimes) ->
             .map(|&n| (n, sliced.median(n)))
             .collect();
     timings_ms.push(("match", named("match")));
-    let (rows, efficiency) = marvin::run::table1(&[marvin::run::Cycle::timed(timings_ms)]);
+    let (rows, efficiency) = marvin::engine::run::table1(&[marvin::engine::run::Cycle::timed(timings_ms)]);
     if args.json {
         return emit(&serde_json::json!({ "table1": rows, "parallel_efficiency": efficiency }).to_string());
     }
@@ -323,7 +323,8 @@ fn server(args: &ServerBenchArgs) -> anyhow::Result<()> {
     let cell =
         CellConfig { world: args.world.clone(), seed: None, cam_from_base: None, expose_truth: false, cameras: None };
     let server = Server::start(ServerConfig::new(cell, "127.0.0.1:0".parse()?))?;
-    let mut client = marvin::client::Client::connect(&server.addr().to_string(), std::time::Duration::from_secs(5))?;
+    let mut client =
+        marvin::engine::client::Client::connect(&server.addr().to_string(), std::time::Duration::from_secs(5))?;
     let hello = client.hello(None)?;
     for _ in 0..50 {
         client.status()?;

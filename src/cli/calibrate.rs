@@ -6,9 +6,9 @@ use super::output::emit;
 use anyhow::Context;
 use camera_calib::file::CamerasFile;
 use hand_eye::HandEyeFile;
-use marvin::calibrate::{CalibrateConfig, Calibration, calibrate};
-use marvin::calibrate_cameras::CameraCalibration;
-use marvin::client::Client;
+use marvin::engine::calibrate::{CalibrateConfig, Calibration, calibrate};
+use marvin::engine::calibrate_cameras::CameraCalibration;
+use marvin::engine::client::Client;
 use marvin::server::{CellConfig, Server, ServerConfig};
 use nalgebra::Isometry3;
 use serde_json::{Value, json};
@@ -254,7 +254,8 @@ fn record(
     c: &Calibration,
     true_cam_from_base: Option<&Isometry3<f64>>,
 ) -> anyhow::Result<()> {
-    let mut r = marvin::recording::Recording::start(&marvin::recording::Sink::File(path.to_path_buf()))?;
+    let mut r =
+        marvin::engine::recording::Recording::start(&marvin::engine::recording::Sink::File(path.to_path_buf()))?;
     r.at(0, 0.0);
     for (k, p) in c.poses.iter().enumerate() {
         r.text(&format!("pose {}/{}: {}", k + 1, c.poses.len(), p.note))?;

@@ -7,7 +7,7 @@ use super::output::emit;
 use anyhow::Context;
 use camera_calib::file::CamerasFile;
 use camera_calib::{Intrinsics, StereoSolution};
-use marvin::calibrate_cameras::{CameraCalibConfig, CameraCalibration, calibrate_cameras};
+use marvin::engine::calibrate_cameras::{CameraCalibConfig, CameraCalibration, calibrate_cameras};
 use nalgebra::Isometry3;
 use serde_json::{Value, json};
 use std::path::{Path, PathBuf};
@@ -93,7 +93,8 @@ pub fn run(args: CamerasArgs) -> anyhow::Result<()> {
     let keep_images = args.save_images.is_some() || args.rerun.is_some();
     let c = run_once(cell, &scn.library, &config, keep_images, &mut progress)?;
     if let Some(path) = &args.rerun {
-        let mut r = marvin::recording::Recording::start(&marvin::recording::Sink::File(path.to_path_buf()))?;
+        let mut r =
+            marvin::engine::recording::Recording::start(&marvin::engine::recording::Sink::File(path.to_path_buf()))?;
         r.camera_calibration(&c)?;
         r.finish()?;
         if !args.json {

@@ -3,8 +3,8 @@
 //! model of its own).
 
 use anyhow::Context;
-use marvin::calibrate_cameras::{CameraCalibConfig, CameraCalibration, calibrate_cameras};
-use marvin::client::Client;
+use marvin::engine::calibrate_cameras::{CameraCalibConfig, CameraCalibration, calibrate_cameras};
+use marvin::engine::client::Client;
 use marvin::protocol::HelloReply;
 
 /// The cameras a run sees through: `given` (a calibration file), else the ones the server
@@ -26,7 +26,7 @@ pub fn cameras(
         if !quiet {
             eprintln!("the cameras as the robot server publishes them (its --cameras file)");
         }
-        return Ok((marvin::perception::stereo_calibration(&rig)?, None));
+        return Ok((marvin::engine::perception::stereo_calibration(&rig)?, None));
     }
     if !quiet {
         eprintln!("the cameras are uncalibrated: calibrating them from the board first");

@@ -4,8 +4,8 @@
 
 use super::output::emit;
 use clap::Subcommand;
+use marvin::eval::truth::TruthScene;
 use marvin::eval::{ArmMask, DisparityStats, LineStats, disparity_stats, edgel_fates, line_stats};
-use marvin::truth::TruthScene;
 use sim::{Scenario, Scene};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -298,7 +298,7 @@ pub struct Pipeline {
     /// Whether the scene came to rest (a warning was printed if not).
     pub settled: bool,
     /// The calibration vision was given, and the true cameras.
-    pub cams: marvin::truth::EvalCameras,
+    pub cams: marvin::eval::truth::EvalCameras,
 }
 
 /// The front end's Canny parameters, deblurred or not.
@@ -310,10 +310,10 @@ pub fn canny_params(deblur: bool) -> vision::CannyParams {
 pub fn eval_cameras(
     imaging: &sim::imaging::Imaging,
     cameras: Option<&std::path::Path>,
-) -> anyhow::Result<marvin::truth::EvalCameras> {
+) -> anyhow::Result<marvin::eval::truth::EvalCameras> {
     Ok(match cameras {
-        Some(path) => marvin::truth::EvalCameras::measured(imaging, &super::calibrate::load_cameras(path)?),
-        None => marvin::truth::EvalCameras::of(imaging),
+        Some(path) => marvin::eval::truth::EvalCameras::measured(imaging, &super::calibrate::load_cameras(path)?),
+        None => marvin::eval::truth::EvalCameras::of(imaging),
     })
 }
 
@@ -324,7 +324,7 @@ pub fn run_pipeline(
     imaging: &sim::imaging::Imaging,
     seed: u64,
     canny: &vision::CannyParams,
-    cams: &marvin::truth::EvalCameras,
+    cams: &marvin::eval::truth::EvalCameras,
 ) -> Pipeline {
     let cams = cams.clone();
     let calib = &cams.vision;
@@ -363,7 +363,7 @@ fn run_locate(
         scn.library.models.values().map(|m| (m.name.clone(), symmetries(m))).collect();
     let mut total = LocateStats::default();
     let mut match_ms = Vec::new();
-    let params = marvin::perception::part_params(Some(&calib.left.cam_from_world()));
+    let params = marvin::engine::perception::part_params(Some(&calib.left.cam_from_world()));
     let mut unsettled = 0;
     let (mut false_reports, mut missed) = (Vec::new(), Vec::new());
     for k in 0..scenes {

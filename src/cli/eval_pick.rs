@@ -2,7 +2,7 @@
 //! counted.
 
 use super::output::{emit, settle};
-use marvin::pick::{ObjectPicks, PickOutcome, clear_scene, load, pickable_models, single_object_scenario};
+use marvin::server::pick::{ObjectPicks, PickOutcome, clear_scene, load, pickable_models, single_object_scenario};
 use rayon::prelude::*;
 use serde_json::json;
 use std::collections::BTreeMap;
@@ -42,7 +42,7 @@ pub fn run(world: &Path, trials: u64, seed: u64, json: bool) -> anyhow::Result<(
         .map(|(model, s)| {
             let one = single_object_scenario(&scn, model);
             let (scene, settled) = settle(&one, *s);
-            let out = marvin::pick::PickCell::new(&one, &work, &scene)?.pick(1, *s)?;
+            let out = marvin::server::pick::PickCell::new(&one, &work, &scene)?.pick(1, *s)?;
             progress.step(format!("single {model} seed {s}: {} {}", out.result, out.detail.as_deref().unwrap_or("")));
             Ok(Trial { outcome: out, settled })
         })

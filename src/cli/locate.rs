@@ -5,8 +5,8 @@ use super::eval::{matcher_models, run_pipeline};
 use super::output::emit;
 use anyhow::{Context, bail};
 use image::{Rgb, RgbImage};
+use marvin::engine::perception::part_params;
 use marvin::eval::{CORRECT_POS_M, CORRECT_ROT_DEG, pose_error, symmetries, visible_fraction};
-use marvin::perception::part_params;
 use nalgebra::Isometry3;
 use sim::Scenario;
 use std::path::{Path, PathBuf};
@@ -192,9 +192,10 @@ fn record(
     let mut rig = calib.clone();
     rig.left.world_from_cam = Isometry3::identity();
     rig.right.world_from_cam = calib.left.cam_from_world() * calib.right.world_from_cam;
-    let pair = marvin::perception::Pair { left: grey(&p.left)?, right: grey(&p.right)?, calib: rig };
+    let pair = marvin::engine::perception::Pair { left: grey(&p.left)?, right: grey(&p.right)?, calib: rig };
     let base_from_world = scn.world.robot.as_ref().map_or(Isometry3::identity(), |r| r.world_from_base().inverse());
-    let mut r = marvin::recording::Recording::start(&marvin::recording::Sink::File(path.to_path_buf()))?;
+    let mut r =
+        marvin::engine::recording::Recording::start(&marvin::engine::recording::Sink::File(path.to_path_buf()))?;
     r.at(0, 0.0);
     r.frame(&(base_from_world * calib.left.world_from_cam));
     r.stereo([png(&p.left)?, png(&p.right)?], &pair, &p.front_end)?;

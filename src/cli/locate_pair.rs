@@ -5,7 +5,7 @@
 use super::edges::load_grey_noting;
 use super::output::emit;
 use anyhow::bail;
-use marvin::perception::{Pair, front_end, locate_parts, part_models};
+use marvin::engine::perception::{Pair, front_end, locate_parts, part_models};
 use std::path::{Path, PathBuf};
 
 /// The command's arguments in this form.

@@ -63,7 +63,7 @@ impl Progress {
 
 /// Table 1's rows beside the paper's, under `heading`, with the speed-up and the slices'
 /// parallel efficiency.
-pub fn table1(heading: &str, rows: &[marvin::run::Table1Row], efficiency: f64) -> anyhow::Result<()> {
+pub fn table1(heading: &str, rows: &[marvin::engine::run::Table1Row], efficiency: f64) -> anyhow::Result<()> {
     emit(heading)?;
     for r in rows {
         emit(&format!("  {:<15} {:>9.1}   paper {:>6.0}", r.stage, r.measured_ms, r.paper_ms))?;

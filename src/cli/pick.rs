@@ -1,8 +1,8 @@
 //! `marvin pick`: settle a scene, pick one object from its true pose, report what happened.
 
 use super::output::emit;
-use marvin::pick::{PickCell, PickOutcome, clear_cell, load, single_object_scenario};
-use marvin::recording::{Recording, Sink};
+use marvin::engine::recording::{Recording, Sink};
+use marvin::server::pick::{PickCell, PickOutcome, clear_cell, load, single_object_scenario};
 use std::path::Path;
 use std::time::Instant;
 

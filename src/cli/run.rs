@@ -9,8 +9,8 @@ use super::calibrate::load_cameras;
 use super::eval_run::Judge;
 use super::output::emit;
 use super::session::{HandEye, failures, outcome_name, run_once};
-use marvin::recording::{Recording, Sink};
-use marvin::run::{Cycle, RunConfig, Stop, table1};
+use marvin::engine::recording::{Recording, Sink};
+use marvin::engine::run::{Cycle, RunConfig, Stop, table1};
 use serde_json::{Value, json};
 use std::path::PathBuf;
 

@@ -6,11 +6,11 @@
 
 use super::calibrate::Cell;
 use anyhow::Context;
-use marvin::calibrate::{CalibrateConfig, Calibration, calibrate};
-use marvin::client::Client;
+use marvin::engine::calibrate::{CalibrateConfig, Calibration, calibrate};
+use marvin::engine::client::Client;
+use marvin::engine::recording::Recording;
+use marvin::engine::run::{Cycle, RunConfig, RunEvent, RunReport};
 use marvin::protocol::{PickOutcomeKind, WirePose};
-use marvin::recording::Recording;
-use marvin::run::{Cycle, RunConfig, RunEvent, RunReport};
 use nalgebra::Isometry3;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -86,8 +86,8 @@ pub fn hand_eye_summary(s: &hand_eye::Solution) -> Vec<String> {
         s.sigma.cam_from_base_mm,
         s.sigma.cam_from_base_deg
     )];
-    if marvin::calibrate::too_uncertain(s) {
-        let (mm, deg) = (marvin::calibrate::UNCERTAIN_MM, marvin::calibrate::UNCERTAIN_DEG);
+    if marvin::engine::calibrate::too_uncertain(s) {
+        let (mm, deg) = (marvin::engine::calibrate::UNCERTAIN_MM, marvin::engine::calibrate::UNCERTAIN_DEG);
         lines.push(format!(
             "warning: the hand-eye calibration is uncertain (sigma over {mm} mm or {deg} deg) after every round of \
              poses: picks may miss; calibrate with more poses (`marvin calibrate --poses 60`) and run with --hand-eye"
@@ -125,7 +125,7 @@ pub fn run_once(
     let config = &RunConfig { cameras: Some(cameras), ..config.clone() };
     // The arm as the recording draws it, from the world file's URDF.
     let arm = match recording.is_some() {
-        true => Some(marvin::pick::Workcell::new(scn)?.arm),
+        true => Some(marvin::server::pick::Workcell::new(scn)?.arm),
         false => None,
     };
     if let Some(r) = recording.as_deref_mut() {
@@ -169,7 +169,8 @@ pub fn run_once(
         Ok(())
     };
     let mut before_pick = |_: &mut Client, k: usize, l: &Located| watcher.before_pick(k, l);
-    let report = marvin::run::run(&mut client, library, config, &cam_from_base, &mut before_pick, &mut observe)?;
+    let report =
+        marvin::engine::run::run(&mut client, library, config, &cam_from_base, &mut before_pick, &mut observe)?;
     if let Some(r) = recording.as_deref_mut() {
         r.at(report.cycles.len(), sim_time);
     }

@@ -9,11 +9,11 @@
 //! op, served only when the server was started for evaluation, reads the simulation's truth.
 
 use super::{CellJob, Shared};
-use crate::pick::{HOME, PickCell, Workcell, grasp_candidates, place_target, static_obstacles};
 use crate::protocol::{
     BinBox, CaptureReply, ErrorCode, Frame, HelloReply, Intrinsics, MoveReply, MoveTarget, PROTOCOL, PickOutcomeKind,
     PickReply, PickSpec, Request, RigCalibration, StatusReply, ToolReply, TruthReply, WireError, WirePose,
 };
+use crate::server::pick::{HOME, PickCell, Workcell, grasp_candidates, place_target, static_obstacles};
 use anyhow::Context;
 use base64::Engine;
 use mesh::{PinholeCamera, StereoCalibration};
@@ -59,7 +59,7 @@ pub(crate) fn run(
     shared: Arc<Shared>,
     ready: std::sync::mpsc::Sender<anyhow::Result<()>>,
 ) {
-    let loaded = crate::pick::load(&config.world).and_then(|(scn, work)| {
+    let loaded = crate::server::pick::load(&config.world).and_then(|(scn, work)| {
         let world_bins = scn.world.bins.len();
         anyhow::ensure!(
             world_bins > 0,

@@ -11,6 +11,7 @@
 //! arm unless it is a valid motion request.
 
 pub mod cell;
+pub mod pick;
 
 use crate::protocol::{
     ErrorCode, IDLE_TIMEOUT_S, MAX_CONNECTIONS, MAX_LINE_BYTES, PROTOCOL, Request, StatusReply, TruthReply, WireError,

@@ -1,7 +1,15 @@
-//! Evaluation of the vision front end against ground truth (the only code that reads it).
+//! Evaluation apart from both sides of the socket: the vision front end's and the matcher's
+//! results against ground truth (the only code that reads it).
+//!
+//! - [`truth`]: the truth itself: exact ray casts into the settled scene, the cameras as
+//!   evaluation places them, and [`truth::AskTruth`], the server's evaluation-only request.
+//! - This file: disparity and coverage figures, located and false reports, quantiles and
+//!   Wilson intervals.
 
+pub mod truth;
+
+use self::truth::{EvalCameras, TruthScene};
 use crate::front_end::FrontEnd;
-use crate::truth::{EvalCameras, TruthScene};
 use nalgebra::Point3;
 use serde::Serialize;
 use vision::front_end::rectify::Rectification;

@@ -5,8 +5,8 @@
 //! is located. Nothing here reads the simulation's truth: poses come from vision, the
 //! camera-to-robot transform from calibration. (Evaluation may watch through a hook, and judges afterwards.)
 
-use crate::client::Client;
-use crate::perception::{Pair, front_end, locate_parts, part_models};
+use crate::engine::client::Client;
+use crate::engine::perception::{Pair, front_end, locate_parts, part_models};
 use crate::protocol::{
     CaptureReply, Frame, PickOutcomeKind, PickReply, PickSpec, PlaceSpec, WireGrasp, WireObject, WirePose,
 };

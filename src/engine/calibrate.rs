@@ -6,8 +6,8 @@
 //! squares (`hand_eye`). Nothing here reads the simulation's truth: that is evaluation's,
 //! afterwards.
 
-use crate::client::Client;
-use crate::perception::{FLAG, FlagSighting, Pair, front_end, locate_flag};
+use crate::engine::client::Client;
+use crate::engine::perception::{FLAG, FlagSighting, Pair, front_end, locate_flag};
 use crate::protocol::{Frame, MoveTarget, WirePose};
 use anyhow::{Context, anyhow};
 use hand_eye::{Sighting, Solution, SolveParams};
@@ -131,7 +131,7 @@ pub fn calibrate(
             progress(&format!("pose {}/{total}: {}", k + 1, record.note));
             poses.push(record);
             // A flag that left the jaws is not where the gripper says: no more sightings.
-            if client.status()?.gripper_opening_mm < held_mm - crate::calibrate_cameras::JAW_SLACK_MM {
+            if client.status()?.gripper_opening_mm < held_mm - crate::engine::calibrate_cameras::JAW_SLACK_MM {
                 lost = true;
                 progress(&format!("the flag left the jaws on the way to pose {}: no more poses", k + 1));
                 poses.last_mut().expect("just pushed").cam_from_flag = None;

@@ -115,11 +115,11 @@ impl EvalCameras {
 /// The robot server's `truth` request (served only with `--truth`, to evaluation). It is not a
 /// method of the client itself, so code on the run path cannot ask without taking this in.
 pub trait AskTruth {
-    fn truth(&mut self) -> Result<crate::protocol::TruthReply, crate::client::ClientError>;
+    fn truth(&mut self) -> Result<crate::protocol::TruthReply, crate::engine::client::ClientError>;
 }
 
-impl AskTruth for crate::client::Client {
-    fn truth(&mut self) -> Result<crate::protocol::TruthReply, crate::client::ClientError> {
+impl AskTruth for crate::engine::client::Client {
+    fn truth(&mut self) -> Result<crate::protocol::TruthReply, crate::engine::client::ClientError> {
         self.call(&crate::protocol::Request::Truth {})
     }
 }

@@ -5,8 +5,8 @@
 //! by [`camera_calib`]. Nothing here reads the capture's camera model or the simulation's
 //! truth.
 
-use crate::client::Client;
-use crate::perception::decode_grey_png;
+use crate::engine::client::Client;
+use crate::engine::perception::decode_grey_png;
 use crate::protocol::{Frame, MoveTarget, WirePose};
 use anyhow::{Context, anyhow};
 use camera_calib::detect::{Dropped, detect};

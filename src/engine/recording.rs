@@ -26,11 +26,11 @@
 //! [`Recording::frame`]), `marvin calibrate --rerun` its calibration. Built without the `rerun`
 //! feature, asking for a recording is an error that says so.
 
-use crate::calibrate::Calibration;
-use crate::calibrate_cameras::CameraCalibration;
-use crate::perception::Pair;
+use crate::engine::calibrate::Calibration;
+use crate::engine::calibrate_cameras::CameraCalibration;
+use crate::engine::perception::Pair;
+use crate::engine::run::Cycle;
 use crate::protocol::{BinBox, CaptureReply, TruthReply};
-use crate::run::Cycle;
 use nalgebra::Isometry3;
 use vision::front_end::FrontEnd;
 use vision::matcher::Located;
