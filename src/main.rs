@@ -166,7 +166,7 @@ enum Command {
     },
     /// Settle a scene and pick one object with the simulated arm, planned from the object's true
     /// pose, into the first bin; reports `placed` or what went wrong (`unplanned`, `miss`,
-    /// `slip`, `drop`, `outside bin`), judged from the physics.
+    /// `slip`, `drop`, `outside bin`, `wrong part`), judged from the physics (`src/server/judge.rs`).
     Pick {
         world: PathBuf,
         /// The object's id (1-based, as in scene.json).
@@ -314,6 +314,11 @@ enum CalibrateWhat {
 }
 
 fn main() -> std::process::ExitCode {
+    // `RUST_LOG` (e.g. `marvin=debug`) logs what the robot server and the cell do, for every
+    // command (`serve` logs at `info` without it).
+    if let Ok(filter) = tracing_subscriber::EnvFilter::try_from_default_env() {
+        let _ = tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).try_init();
+    }
     let result = match Cli::parse().command {
         Command::Run { world, seed, connect, hand_eye, cameras, max_cycles, json, rerun, rerun_connect } => {
             use marvin::engine::recording::Sink;

@@ -460,7 +460,8 @@ pub struct ToolReply {
     pub jaw_mm: f64,
 }
 
-/// How a pick went, judged from the cell: `placed`, `miss`, `slip`, `drop`, `outside_bin`.
+/// How a pick went, judged from the cell: `placed`, `miss`, `slip`, `drop`, `outside_bin`,
+/// `wrong_part` (another object than the one whose pose the request carried was lifted).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum PickOutcomeKind {
@@ -469,6 +470,7 @@ pub enum PickOutcomeKind {
     Slip,
     Drop,
     OutsideBin,
+    WrongPart,
 }
 
 /// `pick`'s reply.

@@ -66,6 +66,17 @@ fn the_table_is_cleared_from_what_the_cameras_see() {
         let left: Vec<String> =
             truth.objects.iter().filter(|o| !o.in_bin).map(|o| format!("{} {}", o.id, o.model)).collect();
         eprintln!("seed {seed}: {} cycles, left on the table: {left:?}", report.cycles.len());
+        for (k, c) in report.cycles.iter().enumerate() {
+            let chosen = c.chosen.map(|i| c.located[i].model.as_str());
+            let outcome = c.outcome.as_ref().map(|o| o.as_ref().map(|r| (r.outcome, r.detail.clone())));
+            eprintln!("  cycle {}: {chosen:?}: {outcome:?}", k + 1);
+        }
+        for o in &truth.objects {
+            eprintln!(
+                "  object {} {} at {:?}, in the bin: {}",
+                o.id, o.model, o.world_from_model.translation_m, o.in_bin
+            );
+        }
         assert_eq!(report.stop, Stop::NothingLocated, "seed {seed}");
         assert!(left.is_empty(), "seed {seed}: {} of {on_table} left on the table: {left:?}", left.len());
         s.stop();

@@ -167,6 +167,46 @@ impl Cell {
         convert::iso(self.world.bodies[body].position())
     }
 
+    /// The world-axis box around a body's colliders as they stand now: (mins, maxs), metres.
+    pub fn world_aabb(&self, body: RigidBodyHandle) -> ([f64; 3], [f64; 3]) {
+        let (mut lo, mut hi) = ([f64::MAX; 3], [f64::MIN; 3]);
+        for (pose, shape) in self.collider_poses(body) {
+            let aabb = shape.compute_aabb(&pose);
+            for k in 0..3 {
+                lo[k] = lo[k].min(aabb.mins[k] as f64);
+                hi[k] = hi[k].max(aabb.maxs[k] as f64);
+            }
+        }
+        (lo, hi)
+    }
+
+    /// Whether two bodies' colliders are within `gap_m` of each other (touching, give or take
+    /// the contacts' own slack): parry's exact distance on the simulated shapes.
+    pub fn touching(&self, a: RigidBodyHandle, b: RigidBodyHandle, gap_m: f64) -> bool {
+        let (xs, ys) = (self.collider_poses(a), self.collider_poses(b));
+        xs.iter().any(|(px, x)| {
+            ys.iter()
+                .any(|(py, y)| matches!(rapier3d::parry::query::contact(px, *x, py, *y, gap_m as f32), Ok(Some(_))))
+        })
+    }
+
+    /// A body's colliders where the body stands now (also before a step has moved the
+    /// colliders after the body was put somewhere).
+    fn collider_poses(&self, body: RigidBodyHandle) -> Vec<(Pose, &dyn Shape)> {
+        let b = &self.world.bodies[body];
+        b.colliders()
+            .iter()
+            .map(|&c| {
+                let collider = &self.world.colliders[c];
+                let pose = match collider.position_wrt_parent() {
+                    Some(rel) => *b.position() * *rel,
+                    None => *collider.position(),
+                };
+                (pose, collider.shape())
+            })
+            .collect()
+    }
+
     /// Steps until every object has been at rest for a while, or `limit_s` of simulated time.
     pub fn settle(&mut self, limit_s: f64) -> SettleReport {
         let dt = self.world.integration_parameters.dt as f64;

@@ -111,7 +111,7 @@ pub enum EvalTarget {
     /// `success_rate`), `first_attempt_success_rate` (objects placed by their first pick),
     /// `pick_success_rate` (placed, of every pick tried), `attempts_per_object`, `failures`
     /// (every failed pick by kind, those later retried included: `unplanned`, `miss`, `slip`,
-    /// `drop`, `outside bin`), `failures_left_on_table` (the last failure of each object not
+    /// `drop`, `outside bin`, `wrong part`), `failures_left_on_table` (the last failure of each object not
     /// cleared). Single: each library model but the calibration flag alone, dropped at
     /// `--trials` seeded poses over the clutter region, picked once: `single_success_rate`,
     /// `single_by_model`, `single_failures`. Also `objects`, `picks`, `unsettled_scenes`

@@ -28,16 +28,18 @@ pub struct JudgedPick {
     pub model: String,
     pub support_fraction: f64,
     pub image_support: f64,
-    /// The nearest object of the model chosen: its id and how far from vision's pose, mm.
-    pub nearest: Option<(u32, f64)>,
+    /// The nearest object of the model chosen: its id, and how far from vision's pose (mm) and
+    /// turned from it (degrees, under the model's symmetries).
+    pub nearest: Option<(u32, f64, f64)>,
     /// The nearest object of any model: its id, model and how far, mm (what a wrong pick went for).
     pub nearest_any: Option<(u32, String, f64)>,
 }
 
 impl JudgedPick {
-    /// The object the pick went for: the nearest of its model, if within [`TARGET_THERE_M`].
+    /// The object the pick went for: the nearest of its model, if within [`TARGET_THERE_M`] and
+    /// [`TARGET_TURN_DEG`] of vision's pose.
     pub fn target(&self) -> Option<u32> {
-        self.nearest.filter(|(_, mm)| *mm < TARGET_THERE_M * 1e3).map(|(id, _)| id)
+        self.nearest.filter(|(_, mm, deg)| *mm < TARGET_THERE_M * 1e3 && *deg < TARGET_TURN_DEG).map(|(id, ..)| id)
     }
 }
 
@@ -54,24 +56,46 @@ pub struct RunTruth {
 }
 
 impl RunTruth {
-    /// Picks at a pose where no object of the model chosen lay.
+    /// Picks at a pose where no object of the model chosen lay, as it lay.
     pub fn wrong_picks(&self) -> impl Iterator<Item = &JudgedPick> {
         self.picks.iter().filter(|p| p.target().is_none())
     }
 
-    /// For each pick tried, whether it was the first at its object (`false` for a wrong pick).
+    /// For each pick tried, whether it was a first attempt: the first at its object, or a wrong
+    /// pick (each a try of its own, and a failed one).
     pub fn first_attempts(&self) -> Vec<bool> {
         let mut seen = std::collections::BTreeSet::new();
-        self.picks.iter().map(|p| p.target().is_some_and(|id| seen.insert(id))).collect()
+        self.picks.iter().map(|p| p.target().is_none_or(|id| seen.insert(id))).collect()
     }
 }
 
-/// A pick is at an object of the model chosen when one lies this near vision's pose, metres.
+/// A pick is at an object of the model chosen when one lies this near vision's pose, metres,
+/// and turned from it by less than [`TARGET_TURN_DEG`]. Twice the matcher's "located" limits
+/// (`marvin::eval::CORRECT_POS_M`, `CORRECT_ROT_DEG`): within these a grasp still lands on the
+/// part's faces; a reading turned further is of another pose, however near its centre.
 const TARGET_THERE_M: f64 = 0.02;
+const TARGET_TURN_DEG: f64 = 10.0;
 
-/// The nearest true object of `model` to vision's pose of it: its id and how far, mm.
-fn nearest_true(truth: &TruthReply, model: &str, cam_from_model: &Isometry3<f64>) -> Option<(u32, f64)> {
-    nearest_object(truth, Some(model), cam_from_model).map(|(id, _, mm)| (id, mm))
+/// The nearest true object of `model` to vision's pose of it: its id, how far (mm) and how
+/// turned (degrees, under the model's `symmetries`).
+fn nearest_true(
+    truth: &TruthReply,
+    model: &str,
+    cam_from_model: &Isometry3<f64>,
+    symmetries: &[Isometry3<f64>],
+) -> Option<(u32, f64, f64)> {
+    let world_from_cam = truth.world_from_cam.to_isometry("world_from_cam").ok()?;
+    let seen = world_from_cam * cam_from_model;
+    truth
+        .objects
+        .iter()
+        .filter(|o| o.model == model)
+        .filter_map(|o| Some((o.id, o.world_from_model.to_isometry("world_from_model").ok()?)))
+        .map(|(id, w)| {
+            let (m, rad) = marvin::eval::pose_error(&seen, &w, symmetries);
+            (id, m * 1e3, rad.to_degrees())
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1))
 }
 
 /// The nearest true object (of `model`, or of any model) to vision's pose: id, model, mm.
@@ -189,7 +213,10 @@ impl Watcher for Judge<'_> {
             model: chosen.model.clone(),
             support_fraction: chosen.support_fraction,
             image_support: chosen.image_support,
-            nearest: nearest_true(&now, &chosen.model, &chosen.cam_from_model),
+            nearest: self
+                .library
+                .get(&chosen.model)
+                .and_then(|m| nearest_true(&now, &chosen.model, &chosen.cam_from_model, &marvin::eval::symmetries(m))),
             nearest_any: nearest_object(&now, None, &chosen.cam_from_model),
         });
         Ok(())
@@ -233,23 +260,28 @@ pub fn eval(world: &Path, scenes: u64, seed: u64, json: bool) -> anyhow::Result<
         let r = run_once(&cell, &scn, s, &known, &config, true, &mut |_| String::new(), None, &mut judge)?;
         let truth = judge.verdict().truth.context("a local server gives the truth")?;
         cell.stop()?;
-        let (p, ok) = (
-            r.cycles.iter().filter(|c| c.chosen.is_some()).count(),
-            r.cycles.iter().filter(|c| outcome_name(c) == "placed").count(),
-        );
+        // A pick succeeds when the server placed the part it aimed at and that part is of the
+        // model chosen, where vision saw it (a wrong pick the server placed is no success).
+        let tried: Vec<&Cycle> = r.cycles.iter().filter(|c| c.chosen.is_some()).collect();
+        let success: Vec<bool> = tried
+            .iter()
+            .zip(&truth.picks)
+            .map(|(c, judged)| outcome_name(c) == "placed" && judged.target().is_some())
+            .collect();
+        let (p, ok) = (tried.len(), success.iter().filter(|s| **s).count());
         (on_table, cleared, picks, placed) =
             (on_table + truth.on_table_at_start, cleared + truth.in_bin_at_end, picks + p, placed + ok);
         wrong.extend(truth.wrong_picks().map(|p| {
             json!({ "seed": s, "cycle": p.cycle + 1, "model": p.model, "support": p.support_fraction,
                     "image_support": p.image_support,
-                    "outcome": r.cycles.get(p.cycle).map(outcome_name), "nearest_of_model_mm": p.nearest.map(|(_, mm)| mm),
+                    "outcome": r.cycles.get(p.cycle).map(outcome_name), "nearest_of_model_mm": p.nearest.map(|(_, mm, _)| mm),
+                    "nearest_of_model_deg": p.nearest.map(|(_, _, deg)| deg),
                     "nearest_object": p.nearest_any.as_ref().map(|(id, model, mm)| json!({ "id": id, "model": model, "mm": mm })) })
         }));
         unsettled += usize::from(truth.unsettled.is_some());
-        let tried = r.cycles.iter().filter(|c| c.chosen.is_some());
-        for (c, first) in tried.zip(truth.first_attempts()) {
+        for (ok, first) in success.iter().zip(truth.first_attempts()) {
             first_attempts += usize::from(first);
-            first_placed += usize::from(first && outcome_name(c) == "placed");
+            first_placed += usize::from(first && *ok);
         }
         cycles += r.cycles.len();
         cycle_s.extend(r.cycles.iter().map(|c| c.cycle_s));
@@ -307,8 +339,8 @@ mod tests {
     use super::{JudgedPick, RunTruth};
 
     #[test]
-    fn a_pick_is_a_first_attempt_only_at_an_object_not_tried_before() {
-        let pick = |nearest: Option<(u32, f64)>| JudgedPick {
+    fn a_first_attempt_is_the_first_pick_at_an_object_or_a_wrong_pick() {
+        let pick = |nearest: Option<(u32, f64, f64)>| JudgedPick {
             cycle: 0,
             model: "m".into(),
             support_fraction: 0.5,
@@ -316,10 +348,72 @@ mod tests {
             nearest,
             nearest_any: None,
         };
-        let picks =
-            vec![pick(Some((3, 1.0))), pick(None), pick(Some((3, 2.0))), pick(Some((5, 0.5))), pick(Some((5, 25.0)))];
+        let picks = vec![
+            pick(Some((3, 1.0, 0.5))),
+            pick(None),
+            pick(Some((3, 2.0, 1.0))),
+            pick(Some((5, 0.5, 0.2))),
+            pick(Some((5, 25.0, 0.2))),
+        ];
         let t = RunTruth { picks, ..RunTruth::default() };
-        assert_eq!(t.first_attempts(), [true, false, false, true, false]);
+        // Wrong picks (no object of the model there) count as first attempts: every first pick
+        // is in the rate's denominator.
+        assert_eq!(t.first_attempts(), [true, true, false, true, true]);
         assert_eq!(t.wrong_picks().count(), 2);
+    }
+
+    /// A pick near an object of the model chosen but turned from it (beyond its symmetries) went
+    /// for another pose: it is a wrong pick, judged by rotation as well as position.
+    #[test]
+    fn a_pick_turned_from_the_part_is_a_wrong_pick() {
+        let pick = |mm: f64, deg: f64| JudgedPick {
+            cycle: 0,
+            model: "m".into(),
+            support_fraction: 0.5,
+            image_support: 0.5,
+            nearest: Some((7, mm, deg)),
+            nearest_any: None,
+        };
+        assert_eq!(pick(3.0, 2.0).target(), Some(7));
+        assert_eq!(pick(3.0, 35.0).target(), None, "near, but turned 35 deg");
+        assert_eq!(pick(30.0, 2.0).target(), None, "turned right, but 30 mm off");
+    }
+
+    /// The symmetries enter the turn: a block read half a turn about its long axis is the same
+    /// pose; a quarter turn of a part with no such symmetry is not.
+    #[test]
+    fn the_turn_of_a_pick_is_measured_under_the_models_symmetries() {
+        use marvin::protocol::{TruthObject, TruthReply, WirePose};
+        use nalgebra::{Isometry3, UnitQuaternion, Vector3};
+        let library = mesh::Library::load_default().unwrap();
+        let world_from_model = Isometry3::translation(0.3, 0.1, 0.02);
+        let truth = |model: &str| TruthReply {
+            objects: vec![TruthObject {
+                id: 1,
+                model: model.into(),
+                world_from_model: WirePose::new(None, &world_from_model),
+                in_bin: false,
+            }],
+            tool_in_gripper: None,
+            world_from_base: WirePose::new(None, &Isometry3::identity()),
+            world_from_cam: WirePose::new(None, &Isometry3::identity()),
+            cam_from_base: WirePose::new(None, &Isometry3::identity()),
+            unsettled: None,
+        };
+        let turned = |model: &str, axis: Vector3<f64>, angle: f64| {
+            let m = library.get(model).unwrap();
+            let c = m.mass.centre_of_mass.coords;
+            let about_centre = Isometry3::translation(c.x, c.y, c.z)
+                * UnitQuaternion::from_axis_angle(&nalgebra::Unit::new_normalize(axis), angle)
+                * Isometry3::translation(-c.x, -c.y, -c.z);
+            let seen = world_from_model * about_centre;
+            super::nearest_true(&truth(model), model, &seen, &marvin::eval::symmetries(m)).unwrap()
+        };
+        let sym = marvin::eval::symmetries(library.get("block").unwrap());
+        assert!(sym.len() > 1, "a block maps onto itself by half turns");
+        let (_, mm, deg) = turned("block", Vector3::z(), std::f64::consts::PI);
+        assert!(mm < 1.0 && deg < 1.0, "a half turn of a block about z is the block: {mm} mm, {deg} deg");
+        let (_, _, deg) = turned("block", Vector3::z(), std::f64::consts::FRAC_PI_2);
+        assert!(deg > 80.0, "a quarter turn of a block about z is not: {deg} deg");
     }
 }

@@ -13,7 +13,7 @@ use crate::protocol::{
     BinBox, CaptureReply, ErrorCode, Frame, HelloReply, Intrinsics, MoveReply, MoveTarget, PROTOCOL, PickOutcomeKind,
     PickReply, PickSpec, Request, RigCalibration, StatusReply, ToolReply, TruthReply, WireError, WirePose,
 };
-use crate::server::pick::{HOME, PickCell, Workcell, grasp_candidates, place_target, static_obstacles};
+use crate::server::pick::{Aim, HOME, PickCell, Workcell, grasp_candidates, place_target, static_obstacles};
 use anyhow::Context;
 use base64::Engine;
 use mesh::{PinholeCamera, StereoCalibration};
@@ -434,12 +434,14 @@ impl<'a> SimCell<'a> {
             });
         }
         self.pick.bin = bin;
-        let out = self.pick.run_plan_on(None, Ok(plan));
+        let aim = Aim::Pose(self.work.world_from_base * request.target.base_from_shape);
+        let out = self.pick.run_plan_on(aim, Ok(plan));
         let outcome = match out.result.as_str() {
             "placed" => PickOutcomeKind::Placed,
             "miss" => PickOutcomeKind::Miss,
             "slip" => PickOutcomeKind::Slip,
             "drop" => PickOutcomeKind::Drop,
+            "wrong part" => PickOutcomeKind::WrongPart,
             _ => PickOutcomeKind::OutsideBin,
         };
         Ok(PickReply {

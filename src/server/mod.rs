@@ -11,6 +11,7 @@
 //! arm unless it is a valid motion request.
 
 pub mod cell;
+pub mod judge;
 pub mod pick;
 
 use crate::protocol::{

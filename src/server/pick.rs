@@ -1,9 +1,11 @@
 //! Physical pick and place in the simulated cell: the arm is loaded into a rapier world holding a
 //! settled scene, a pick plan is made for an object from its pose (ground truth here; the
 //! end-to-end work will hand in vision's pose), the motors follow the plan, and the outcome is
-//! judged from the physics alone: held = between the fingers and lifted with them; placed = at
-//! rest inside the bin.
+//! judged from the physics alone: held = between the fingers and lifted with them; placed = as
+//! [`super::judge`] rules (at rest inside the bin's walls, not piled over its rim, touching no
+//! finger, and the part the pick aimed at).
 
+use super::judge::{Part, aimed_at, why_not_placed};
 use anyhow::{Result, anyhow};
 use mesh::Model;
 use nalgebra::{Isometry3, Point3, Vector3};
@@ -18,10 +20,6 @@ use sim::scene::{Scenario, Scene, static_boxes};
 use std::path::PathBuf;
 
 pub use sim::arm::HOME;
-/// How high over a bin's floor, in bin depths, an object on the pile in it may rest and still
-/// count as in it: seven parts in the default bin pile up to about two depths (a block resting
-/// at 2.1 depths on top of the others was judged outside at 2).
-const BIN_PILE_DEPTHS: f64 = 3.0;
 /// How long the cell runs after a move or a grip command before the next one, seconds.
 const HOLD_S: f64 = 0.15;
 /// Longest a grip command may take to come to rest, seconds.
@@ -57,7 +55,8 @@ impl Workcell {
 pub struct PickOutcome {
     pub object: u32,
     pub model: String,
-    /// `placed`, or what went wrong: `unplanned`, `miss`, `slip`, `drop`, `outside bin`.
+    /// `placed`, or what went wrong: `unplanned`, `miss`, `slip`, `drop`, `outside bin`,
+    /// `wrong part` (another body than the one aimed at was lifted).
     pub result: String,
     pub placed: bool,
     pub held: bool,
@@ -72,6 +71,17 @@ pub struct PickOutcome {
     pub closed_opening_mm: Option<f64>,
     /// The width across the jaws of the grasp planned, mm: what `closed_opening_mm` should be.
     pub grasp_width_mm: Option<f64>,
+    /// The object lifted, when it was not the one aimed at (a `wrong part`).
+    pub lifted_instead: Option<u32>,
+}
+
+/// What a pick aims at: a body (evaluation, planning from the truth), or the pose a request
+/// carried (the robot server, which knows only what the client sent): the body nearest it when
+/// the jaws close.
+#[derive(Debug, Clone, Copy)]
+pub enum Aim {
+    Body(RigidBodyHandle),
+    Pose(Isometry3<f64>),
 }
 
 /// A scene in the physics world with the arm in it.
@@ -175,18 +185,12 @@ impl<'a> PickCell<'a> {
     /// Executes a pick plan for object `id` (or reports why there is none) and judges it.
     pub fn run_plan(&mut self, id: u32, plan: Result<PickPlan, robot::pick::PickError>) -> Result<PickOutcome> {
         let (_, body) = self.body(id)?;
-        Ok(self.run_plan_on(Some(body), plan))
+        Ok(self.run_plan_on(Aim::Body(body), plan))
     }
 
-    /// Executes a pick plan for `target` -- or, when the caller does not know which body it
-    /// aims at (the robot server knows only a grasp pose), for whatever object the fingers
-    /// close on -- and judges it from the physics. A failed pick leaves the gripper open and
-    /// lifted clear.
-    pub fn run_plan_on(
-        &mut self,
-        target: Option<RigidBodyHandle>,
-        plan: Result<PickPlan, robot::pick::PickError>,
-    ) -> PickOutcome {
+    /// Executes a pick plan aimed at `aim` and judges it from the physics. A failed pick leaves
+    /// the gripper open and lifted clear.
+    pub fn run_plan_on(&mut self, aim: Aim, plan: Result<PickPlan, robot::pick::PickError>) -> PickOutcome {
         let start_s = self.simulated_s;
         let mut out = PickOutcome {
             object: 0,
@@ -201,8 +205,9 @@ impl<'a> PickCell<'a> {
             worst_tracking_step: None,
             closed_opening_mm: None,
             grasp_width_mm: None,
+            lifted_instead: None,
         };
-        if let Some(body) = target {
+        if let Aim::Body(body) = aim {
             self.name_object(body, &mut out);
         }
         let plan = match plan {
@@ -214,7 +219,11 @@ impl<'a> PickCell<'a> {
         };
         out.grasp = Some(plan.grasp_index);
         out.grasp_width_mm = Some(plan.grasp.width * 1e3);
-        self.execute(&plan, target, &mut out);
+        self.execute(&plan, aim, &mut out);
+        self.judge_wrong_part(&mut out);
+        if !out.placed {
+            tracing::debug!(object = out.object, model = %out.model, result = %out.result, detail = ?out.detail, "pick failed");
+        }
         self.released += 1;
         if !out.placed {
             self.recover();
@@ -244,9 +253,12 @@ impl<'a> PickCell<'a> {
             .min_by(|a, b| distance(*a).total_cmp(&distance(*b)))
     }
 
-    fn execute(&mut self, plan: &PickPlan, target: Option<RigidBodyHandle>, out: &mut PickOutcome) {
+    fn execute(&mut self, plan: &PickPlan, aim: Aim, out: &mut PickOutcome) {
         let height = |cell: &Cell, b: RigidBodyHandle| cell.pose(b).translation.z;
-        let mut target = target.map(|b| (b, height(&self.cell, b)));
+        let mut target = match aim {
+            Aim::Body(b) => Some((b, height(&self.cell, b))),
+            Aim::Pose(_) => None,
+        };
         let mut left_early = false;
         for step in &plan.steps {
             match &step.action {
@@ -263,11 +275,8 @@ impl<'a> PickCell<'a> {
                 "close" => {
                     let opening = self.arm.opening(&self.cell);
                     out.closed_opening_mm = Some(opening * 1e3);
-                    if target.is_none() {
-                        target = self.body_between_fingers().map(|b| (b, height(&self.cell, b)));
-                        if let Some((b, _)) = target {
-                            self.name_object(b, out);
-                        }
+                    if let Some(b) = self.gripped_instead(aim, out) {
+                        target = Some((b, height(&self.cell, b)));
                     }
                     if opening < 0.2 * plan.grasp.width || target.is_none() {
                         return fail(out, "miss", format!("the fingers closed to {:.1} mm on nothing", opening * 1e3));
@@ -289,26 +298,56 @@ impl<'a> PickCell<'a> {
         }
         let Some((body, _)) = target else { return };
         self.run_until_rest(body);
-        out.placed = self.inside_bin(body);
+        let why_not = self.why_not_in(body, self.bin);
+        out.placed = why_not.is_none();
         let p = self.cell.pose(body).translation.vector;
-        match (out.placed, left_early) {
-            (true, false) => out.result = "placed".into(),
-            (true, true) => {
+        let at = format!("it came to rest at ({:.3}, {:.3}, {:.3})", p.x, p.y, p.z);
+        match (why_not, left_early) {
+            (None, false) => out.result = "placed".into(),
+            (None, true) => {
                 out.result = "placed".into();
                 out.detail = Some("it left the jaws on the way, and landed in the bin".into());
             }
-            (false, true) => fail(
-                out,
-                "drop",
-                format!(
-                    "the object left the gripper on the way to the bin; it came to rest at ({:.3}, {:.3}, {:.3})",
-                    p.x, p.y, p.z
-                ),
-            ),
-            (false, false) => {
-                fail(out, "outside bin", format!("the object came to rest at ({:.3}, {:.3}, {:.3})", p.x, p.y, p.z))
+            (Some(why), true) => {
+                fail(out, "drop", format!("the object left the gripper on the way to the bin; {at}: {why}"))
             }
+            (Some(why), false) => fail(out, "outside bin", format!("{at}: {why}")),
         }
+    }
+
+    /// When the jaws close: the body aimed at (`aim`'s, or the one nearest the pose it carried)
+    /// is named in `out`; the body between the fingers is returned when the pick should follow
+    /// it instead (the server's aim, which names no body; or another body than the one aimed
+    /// at, which `out.lifted_instead` then names).
+    fn gripped_instead(&self, aim: Aim, out: &mut PickOutcome) -> Option<RigidBodyHandle> {
+        let intended = match aim {
+            Aim::Body(b) => Some(b),
+            Aim::Pose(p) => aimed_at(&self.cell, self.objects.iter().map(|(_, _, b)| *b), &p),
+        };
+        if let Some(b) = intended {
+            self.name_object(b, out);
+        }
+        let gripped = intended.filter(|b| self.between_fingers(*b)).or_else(|| self.body_between_fingers())?;
+        if intended.is_some_and(|i| i != gripped) {
+            out.lifted_instead = self.objects.iter().find(|(_, _, b)| *b == gripped).map(|(id, _, _)| *id);
+        }
+        (matches!(aim, Aim::Pose(_)) || out.lifted_instead.is_some()).then_some(gripped)
+    }
+
+    /// A pick that lifted another body than the one aimed at is a `wrong part`, wherever that
+    /// body came to rest.
+    fn judge_wrong_part(&self, out: &mut PickOutcome) {
+        let Some(other) = out.lifted_instead else { return };
+        let then = match &out.detail {
+            Some(d) => format!("{}: {d}", out.result),
+            None => out.result.clone(),
+        };
+        out.placed = false;
+        out.result = "wrong part".into();
+        out.detail = Some(format!(
+            "it lifted object {other} where it aimed at object {} ({}); then {then}",
+            out.object, out.model
+        ));
     }
 
     /// After a failed pick: opens the gripper and lifts straight up on the zed joint, which
@@ -396,24 +435,22 @@ impl<'a> PickCell<'a> {
 
     /// Whether `body` rests in any of the cell's bins.
     pub fn inside_any_bin(&self, body: RigidBodyHandle) -> bool {
-        (0..self.scn.world.bins.len()).any(|k| self.inside_bin_k(body, k))
+        (0..self.scn.world.bins.len()).any(|k| self.why_not_in(body, k).is_none())
     }
 
-    /// At rest with its centre of mass over the inside of the target bin's floor, no higher than
-    /// [`BIN_PILE_DEPTHS`] bin depths (so on the floor or on what already lies in the bin, not
-    /// balanced on a wall, which would put the centre of mass over the wall).
+    /// Whether `body` counts as placed in the target bin ([`super::judge`]'s rules).
     pub fn inside_bin(&self, body: RigidBodyHandle) -> bool {
-        self.inside_bin_k(body, self.bin)
+        self.why_not_in(body, self.bin).is_none()
     }
 
-    fn inside_bin_k(&self, body: RigidBodyHandle, k: usize) -> bool {
-        let Some(bin) = self.scn.world.bins.get(k) else { return false };
-        let b = &self.cell.world.bodies[body];
-        let com = b.center_of_mass();
-        let (dx, dy) = ((com.x as f64 - bin.centre_m[0]).abs(), (com.y as f64 - bin.centre_m[1]).abs());
-        let resting = b.linvel().length() < 0.01;
-        let [sx, sy, depth] = bin.size_m;
-        resting && dx < sx / 2.0 && dy < sy / 2.0 && (com.z as f64) < bin.wall_m + BIN_PILE_DEPTHS * depth
+    /// Why `body` does not count as placed in bin `k`, or `None` when it does.
+    fn why_not_in(&self, body: RigidBodyHandle, k: usize) -> Option<String> {
+        let Some(bin) = self.scn.world.bins.get(k) else { return Some(format!("the cell has no bin {k}")) };
+        let Some((_, name, _)) = self.objects.iter().find(|(_, _, b)| *b == body) else {
+            return Some("it is not a part of the scene".into());
+        };
+        let model = &self.scn.library.models[name];
+        why_not_placed(&self.cell, &Part { body, model, fingers: &self.arm.finger_bodies }, bin)
     }
 }
 
