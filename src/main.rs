@@ -163,6 +163,10 @@ enum Command {
         /// With --left/--right: the pair's cameras (cameras.json, or a scene.json).
         #[arg(long)]
         cameras: Option<PathBuf>,
+        /// The hand-eye calibration (`marvin calibrate`'s file) that places the table, as `marvin
+        /// run` places it; without it one is made first through the cameras vision sees by.
+        #[arg(long, conflicts_with = "left")]
+        hand_eye: Option<PathBuf>,
     },
     /// Settle a scene and pick one object with the simulated arm, planned from the object's true
     /// pose, into the first bin; reports `placed` or what went wrong (`unplanned`, `miss`,
@@ -345,10 +349,10 @@ fn main() -> std::process::ExitCode {
             json,
             ..
         } => locate_pair::run(locate_pair::PairArgs { left, right, cameras, models, json }),
-        Command::Locate { world, seed, models, json, out, rerun, no_deblur, cameras, .. } => {
+        Command::Locate { world, seed, models, json, out, rerun, no_deblur, cameras, hand_eye, .. } => {
             let canny = eval::canny_params(!no_deblur);
             anyhow::Context::context(world, "a world file, or --left, --right and --cameras").and_then(|world| {
-                locate::run(locate::LocateArgs { world, seed, models, json, out, rerun, cameras }, &canny)
+                locate::run(locate::LocateArgs { world, seed, models, json, out, rerun, cameras, hand_eye }, &canny)
             })
         }
         Command::Pick { world, object, all: _, model, seed, json, rerun } => {

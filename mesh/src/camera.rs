@@ -215,6 +215,19 @@ impl StereoCalibration {
         self.right.cam_from_world() * self.left.world_from_cam
     }
 
+    /// The same pair in the left camera's own frame (`cam`): the left camera at the origin, the
+    /// right where it stands from the left. What a camera calibration gives, and what
+    /// perception assumes.
+    pub fn in_left_frame(&self) -> StereoCalibration {
+        StereoCalibration {
+            left: PinholeCamera { world_from_cam: Isometry3::identity(), ..self.left.clone() },
+            right: PinholeCamera {
+                world_from_cam: self.left.cam_from_world() * self.right.world_from_cam,
+                ..self.right.clone()
+            },
+        }
+    }
+
     /// Distance between the two camera centres, metres.
     pub fn baseline(&self) -> f64 {
         (self.right.centre() - self.left.centre()).norm()

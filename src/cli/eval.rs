@@ -148,6 +148,11 @@ pub enum EvalTarget {
         /// Vision sees through these measured cameras (as for `eval vision`).
         #[arg(long)]
         cameras: Option<PathBuf>,
+        /// The hand-eye calibration (`marvin calibrate`'s file) that places the table, as `marvin
+        /// run` places it; without it one is made first, through the cameras vision sees by, on
+        /// the first seed's scene.
+        #[arg(long)]
+        hand_eye: Option<PathBuf>,
     },
 }
 
@@ -179,8 +184,9 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
         EvalTarget::Vision { world, scenes, seed, slices, no_deblur, json, cameras } => {
             (world, scenes, seed, slices as usize, !no_deblur, json, cameras)
         }
-        EvalTarget::Locate { world, scenes, seed, no_deblur, json, cameras } => {
-            return run_locate(&world, scenes, seed, &canny_params(!no_deblur), json, cameras.as_deref());
+        EvalTarget::Locate { world, scenes, seed, no_deblur, json, cameras, hand_eye } => {
+            let sources = LocateSources { cameras: cameras.as_deref(), hand_eye: hand_eye.as_deref() };
+            return run_locate(&world, scenes, seed, &canny_params(!no_deblur), json, &sources);
         }
         EvalTarget::Pick { world, trials, seed, json } => return super::eval_pick::run(&world, trials, seed, json),
         EvalTarget::Run { world, scenes, seed, json } => return super::eval_run::eval(&world, scenes, seed, json),
@@ -345,25 +351,32 @@ pub fn matcher_models(library: &mesh::Library, only: Option<&[String]>) -> Vec<v
         .collect()
 }
 
+/// Where `eval locate` takes vision's cameras and the table's place from.
+struct LocateSources<'a> {
+    cameras: Option<&'a std::path::Path>,
+    hand_eye: Option<&'a std::path::Path>,
+}
+
 fn run_locate(
     world: &std::path::Path,
     scenes: u64,
     seed: u64,
     canny: &vision::CannyParams,
     json: bool,
-    cameras: Option<&std::path::Path>,
+    sources: &LocateSources,
 ) -> anyhow::Result<()> {
     use marvin::eval::{LocateStats, locate_stats, quantile, symmetries};
     let scn = Scenario::load(world)?;
     let imaging = sim::imaging::Imaging::new(&scn.world);
-    let cams = eval_cameras(&imaging, cameras)?;
+    let cams = eval_cameras(&imaging, sources.cameras)?;
     let calib = cams.vision.clone();
+    let table = super::table::cam_from_table(world, &scn, &calib, sources.hand_eye, seed, json)?;
     let models = matcher_models(&scn.library, None);
     let symmetry: BTreeMap<String, Vec<nalgebra::Isometry3<f64>>> =
         scn.library.models.values().map(|m| (m.name.clone(), symmetries(m))).collect();
     let mut total = LocateStats::default();
     let mut match_ms = Vec::new();
-    let params = marvin::engine::perception::part_params(Some(&calib.left.cam_from_world()));
+    let params = marvin::engine::perception::part_params(table.cam_from_table.as_ref());
     let mut unsettled = 0;
     let (mut false_reports, mut missed) = (Vec::new(), Vec::new());
     for k in 0..scenes {
@@ -398,6 +411,7 @@ fn run_locate(
         "realism": imaging.preset,
         "seeds": [seed, seed + scenes - 1],
         "scenes": scenes,
+        "table": table.source,
         "located_fraction": total.located as f64 / total.eligible.max(1) as f64,
         "pos_err_mm_median": quantile(&total.pos_err_mm, 0.5),
         "pos_err_mm_p90": quantile(&total.pos_err_mm, 0.9),

@@ -25,10 +25,12 @@ pub struct LocateArgs {
     pub rerun: Option<PathBuf>,
     /// A camera calibration file (`marvin calibrate cameras`) vision sees through.
     pub cameras: Option<PathBuf>,
+    /// A hand-eye calibration file that places the table (else one is made first).
+    pub hand_eye: Option<PathBuf>,
 }
 
 pub fn run(args: LocateArgs, canny: &vision::CannyParams) -> anyhow::Result<()> {
-    let LocateArgs { world, seed, models, json, out, rerun, cameras } = args;
+    let LocateArgs { world, seed, models, json, out, rerun, cameras, hand_eye } = args;
     let (world, out, rerun) = (world.as_path(), out.as_deref(), rerun.as_deref());
     let scn = Scenario::load(world)?;
     if let Some(names) = &models {
@@ -48,7 +50,8 @@ pub fn run(args: LocateArgs, canny: &vision::CannyParams) -> anyhow::Result<()> 
     let lines: Vec<Seg> = p.front_end.lines3d.iter().map(|l| Seg::new(l.start(), l.end())).collect();
     let sought = matcher_models(&scn.library, models.as_deref());
     let evidence = vision::matcher::verify::ImageEvidence::of_pair(&calib, &p.front_end);
-    let located = locate_all(&sought, &lines, &part_params(Some(&calib.left.cam_from_world())), Some(&evidence));
+    let table = super::table::cam_from_table(world, &scn, &calib, hand_eye.as_deref(), seed, json)?;
+    let located = locate_all(&sought, &lines, &part_params(table.cam_from_table.as_ref()), Some(&evidence));
     // Compare with the truth (evaluation only).
     let truths: Vec<(String, Isometry3<f64>)> =
         p.scene.objects.iter().map(|o| (o.model.clone(), calib.left.cam_from_world() * o.world_from_model)).collect();
@@ -114,7 +117,9 @@ pub fn run(args: LocateArgs, canny: &vision::CannyParams) -> anyhow::Result<()> 
         })
         .collect();
     if json {
-        emit(&serde_json::json!({ "seed": seed, "located": rows, "missed": missed }).to_string())?;
+        emit(
+            &serde_json::json!({ "seed": seed, "table": table.source, "located": rows, "missed": missed }).to_string(),
+        )?;
     } else {
         for r in &rows {
             emit(&format!(

@@ -13,6 +13,7 @@
 //! - [`calibrate_cameras`]: camera calibration from the board through the robot server.
 //! - [`cameras`]: where a client's cameras come from (a file, the server, or measured first).
 //! - [`serve`]: the simulated cell and the robot server behind a socket.
+//! - [`table`]: the table as `run` knows it (hand-eye transform and layout), for `locate`.
 //! - [`eval`], [`eval_pick`]: the pipeline over seeded scenes, against the truth.
 //! - [`bench`]: medians of how fast things run.
 //! - [`output`]: printing that tolerates a reader going away, progress, settling with a warning.
@@ -36,3 +37,4 @@ pub mod run;
 pub mod serve;
 pub mod session;
 pub mod stereo;
+pub mod table;
