@@ -2,12 +2,12 @@
 //! handed in, carried to 20 poses, seen, located and solved; the result against the simulation's
 //! truth (read here, after the solve, as evaluation does).
 //!
-//! The seeds are the first three of the reporting range (10001-10003). The limits are the hand-eye
-//! issue's: every calibration within twice the median targets (1.0 mm, 0.1 deg), their median
-//! within the targets (0.5 mm, 0.05 deg), and the flag moving less than 0.1 mm in the jaws between
-//! the first and last sighting. `marvin eval calibrate worlds/widgets.toml --trials 10 --seed
-//! 10001` does today 0.080 mm / 0.016 deg median (p90 0.15 mm / 0.026 deg), the flag moving
-//! 0.094 mm at most.
+//! The seeds are 360001-360003, a range never used for a choice (the test ran on 10001-10003
+//! until that range had served for choices). The limits are the hand-eye issue's: every
+//! calibration within twice the median targets (1.0 mm, 0.1 deg), their median within the targets
+//! (0.5 mm, 0.05 deg), and the flag moving less than 0.1 mm in the jaws between the first and last
+//! sighting. On 10001-10010 `marvin eval calibrate worlds/widgets.toml --trials 10 --seed 10001`
+//! did 0.080 mm / 0.016 deg median (p90 0.15 mm / 0.026 deg), the flag moving 0.094 mm at most.
 //!
 //! Run on the ideal copy of the world (`worlds/ideal/`): these figures were measured in the ideal
 //! cell and vision has not yet earned them in the realistic one (README, "The realistic cell").
@@ -80,8 +80,8 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 #[test]
 fn calibration_meets_the_hand_eye_targets_and_the_flag_stays_put() {
-    let outcomes: Vec<Outcome> = [10001, 10002, 10003].map(calibrate_seed).into();
-    for (seed, o) in (10001..).zip(&outcomes) {
+    let outcomes: Vec<Outcome> = [360001, 360002, 360003].map(calibrate_seed).into();
+    for (seed, o) in (360001..).zip(&outcomes) {
         eprintln!(
             "seed {seed}: {:.3} mm, {:.4} deg, {} sightings used, the flag moved {:.3} mm",
             o.mm, o.deg, o.used, o.creep_mm

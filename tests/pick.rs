@@ -85,7 +85,7 @@ fn single_objects_are_picked_and_placed() {
     let mut outcomes = Vec::new();
     for model in pickable_models(&scn) {
         let one = single_object_scenario(&scn, &model);
-        for seed in 10001..=10003 {
+        for seed in 360001..=360003 {
             let scene = Scene::settle(&one, seed);
             let out = PickCell::new(&one, &work, &scene).unwrap().pick(1, seed).unwrap();
             if out.placed {
@@ -107,17 +107,17 @@ fn single_objects_are_picked_and_placed() {
     assert!(placed as f64 >= 0.95 * outcomes.len() as f64, "{placed}/{}: {failed:?}", outcomes.len());
 }
 
-/// Two clutter scenes of the reporting range (seeds from 10001: never used to choose anything)
-/// cleared object by object from true poses. Every attempt is kept: the first attempts are
-/// judged as well as how each object ended. Measured: all 14 cleared, all at their first pick
-/// (`marvin eval pick worlds/widgets.toml --trials 2 --seed 10001`); the limits let one part
-/// stay and two first picks fail (over 20 scenes 98.6% are cleared and 95.0% go at the first
-/// pick).
+/// Two clutter scenes, 360001-360002 (never used to choose anything; the test ran on 10001-10002
+/// until that range had served for choices), cleared object by object from true poses and
+/// judged strictly (`src/server/judge.rs`). Every attempt is kept: the first attempts are judged
+/// as well as how each object ended. On 10001-10002 all 14 were cleared at their first pick; the
+/// limits let one part stay and two first picks fail (over 20 scenes of 10001- 98.6% were cleared
+/// and 95.0% went at the first pick).
 #[test]
 fn clutter_is_cleared_into_the_bin() {
     let (scn, work) = load(world()).unwrap();
     let mut objects = Vec::new();
-    for seed in [10001, 10002] {
+    for seed in [360001, 360002] {
         objects.extend(clear_scene(&scn, &work, &Scene::settle(&scn, seed)).unwrap());
     }
     assert_eq!(objects.len(), 14, "every object listed");

@@ -4,10 +4,11 @@
 //! the socket until nothing more is located. The table must end clear (checked against the
 //! simulation's truth, read after the run).
 //!
-//! The scenes are the first two of the reporting range (seeds 10001 and 10002, never used to
-//! choose anything), not seeds picked because they cleared. Not every scene ends clear (`marvin
-//! eval run worlds/widgets.toml --scenes 20 --seed 10001`, one calibration shared: 92% of objects
-//! cleared; with seed 10001's calibration, 1.2 mm / 0.16 deg off, seed 10002 leaves two parts).
+//! The scenes are 360001 and 360002, never used to choose anything, not seeds picked because they
+//! cleared (the test ran on 10001-10002 until that range had served for choices; there, seed
+//! 10002 was looked into when it failed, see `measured_cameras`). Not every scene ends clear:
+//! `marvin eval run worlds/widgets.toml --scenes 100 --seed 350001` (realistic, one calibration
+//! shared) cleared 98.4% of objects.
 //!
 //! Run on the ideal copy of the world (`worlds/ideal/`): these figures were measured in the ideal
 //! cell and vision has not yet earned them in the realistic one (README, "The realistic cell").
@@ -30,17 +31,17 @@ fn server(seed: u64) -> (Server, Client, f64) {
     (server, client, table_top)
 }
 
-/// The cameras as measured once, in a cell of their own (seed 10001's), from the board: as a
+/// The cameras as measured once, in a cell of their own (seed 360001's), from the board: as a
 /// cell's cameras are calibrated before runs and each run reads the file (`marvin run
 /// --cameras`). Said plainly: this shape was chosen after seed 10002 failed with the cameras
 /// calibrated in the run's own cell (a board knocked out of the jaws fell into the clutter and
 /// swept a block 18 cm), so seed 10002 has been looked at for this test; the limits were not
 /// changed.
 fn measured_cameras(library: &mesh::Library) -> mesh::StereoCalibration {
-    let (s, mut c, table_top) = server(10001);
+    let (s, mut c, table_top) = server(360001);
     // The server tells nothing of its cameras: they are measured.
     assert!(c.capture().unwrap().calibration.is_none(), "the server tells nothing of its cameras");
-    let config = CameraCalibConfig { seed: 10001, ..CameraCalibConfig::default() };
+    let config = CameraCalibConfig { seed: 360001, ..CameraCalibConfig::default() };
     let cameras = calibrate_cameras(&mut c, table_top, library, &config, false, &mut |_| {}).unwrap();
     s.stop();
     cameras.stereo_calibration()
@@ -50,7 +51,7 @@ fn measured_cameras(library: &mesh::Library) -> mesh::StereoCalibration {
 fn the_table_is_cleared_from_what_the_cameras_see() {
     let library = mesh::Library::load_default().unwrap();
     let cameras = measured_cameras(&library);
-    for seed in [10001, 10002] {
+    for seed in [360001, 360002] {
         let (s, mut c, _) = server(seed);
         // As `marvin run --cameras` does: the hand-eye transform through the measured cameras
         // first, then pick.
