@@ -139,7 +139,8 @@ pub const TURN_MISFIT: f64 = 5.0;
 /// `widgets.toml`, `side_light.toml`, `dense.toml`) 1, 7 and 6 correct reports lay further
 /// than 8 from the light against 3, 6 and 8 false ones; of those on little 3D evidence, 0, 3
 /// and 3 against 2, 5 and 7 (measured before the light's consensus start, which put right
-/// the light of side-light seed 30012, where four correct reports had been dropped).
+/// the light of reporting seed 30012 of `side_light.toml`, where four correct reports had been
+/// dropped).
 pub const REJECT_MISFIT: f64 = 8.0;
 /// A rival on more 3D evidence fits the light only if what its faces show lies within this
 /// share of what the light predicts for its model's albedo ([`Light::albedo_factor`];

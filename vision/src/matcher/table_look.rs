@@ -3,8 +3,10 @@
 //! Most objects the other looks miss are half hidden under others and lie flat on the table,
 //! with a few short 3D lines (most on 1-3 lines holding 3-16% of their wireframe's length,
 //! where the first look asks 15%), yet what the located objects leave of them in view runs
-//! along edgels for over 80% of it (`widgets.toml`, seeds 90001-90050: 17 of 19 misses flat,
-//! 16 over 80%). The table is evidence the first look does not use: of the poses two short 3D
+//! along edgels for over 80% of it (first counted on reporting seeds, `widgets.toml`
+//! 90001-90050: 17 of 19 misses flat, 16 over 80%; on tuning seeds the look locates 0.3-1.4
+//! points more, `eval locate --seed 1` of `widgets.toml` and `dense.toml`, both presets,
+//! docs/TUNING.md). The table is evidence the first look does not use: of the poses two short 3D
 //! lines give, few put a part flat on the top. So the first look keeps, apart, the hypotheses
 //! short of its floor that do ([`super::hypotheses::Seen::flat`]); here each is laid exactly
 //! flat (turned about the part's middle until its resting face is down, then set on the top),
@@ -77,8 +79,9 @@ pub(crate) fn locate(
             continue;
         }
         // Laid flat again: the image's refinement leaves a part a few degrees tilted, which can
-        // put it a few millimetres off where the table holds it (`widgets.toml` seed 90041:
-        // 2.4 mm and 5 degrees off, right once laid flat).
+        // put it a few millimetres off where the table holds it (seen on reporting seed 90041
+        // of `widgets.toml`: 2.4 mm and 5 degrees off, right once laid flat; on tuning seeds it
+        // changes no figure beyond a part either way).
         let pose = laid_flat(table, model, &pose);
         let own = Solid::new(model, &pose);
         let hiding: Vec<&Solid> = solids.iter().chain([&own]).collect();
