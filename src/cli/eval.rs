@@ -71,6 +71,36 @@ pub enum EvalTarget {
         seed: u64,
         #[arg(long)]
         json: bool,
+        /// Run shard K of N of the scenes (those whose index from the first, counting from 0,
+        /// leaves K - 1 divided by N), or `auto`: the index a Slurm job array
+        /// (SLURM_ARRAY_TASK_ID) or a Kubernetes Indexed Job (JOB_COMPLETION_INDEX, with
+        /// JOB_COMPLETIONS set) gives. Every shard calibrates on the range's first scene.
+        #[arg(long)]
+        shard: Option<String>,
+        /// Append one JSON line per scene to this file as the scene ends (for `eval merge`).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Skip the scenes already in --out's file and carry on.
+        #[arg(long, requires = "out")]
+        resume: bool,
+        /// Scenes run at once (each with its own robot server); the figures do not depend on it.
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..=64))]
+        jobs: u64,
+        /// Measured cameras to share (`marvin calibrate cameras`), instead of calibrating first.
+        #[arg(long)]
+        cameras: Option<PathBuf>,
+        /// A hand-eye calibration to share (`marvin calibrate`), instead of calibrating first.
+        #[arg(long)]
+        hand_eye: Option<PathBuf>,
+    },
+    /// Merge the per-scene records (`--out` files) of a batch's shards into the summary one
+    /// process over the whole range prints; refuses records of different verbs, worlds, ranges
+    /// or code versions, and says which seeds are missing or there twice.
+    Merge {
+        #[arg(required = true)]
+        files: Vec<PathBuf>,
+        #[arg(long)]
+        json: bool,
     },
     /// Seeded hand-eye calibrations (each on its own scene, with its own poses and sensor noise),
     /// each through a robot server started here, against the simulation's truth; through
@@ -189,7 +219,16 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
             return run_locate(&world, scenes, seed, &canny_params(!no_deblur), json, &sources);
         }
         EvalTarget::Pick { world, trials, seed, json } => return super::eval_pick::run(&world, trials, seed, json),
-        EvalTarget::Run { world, scenes, seed, json } => return super::eval_run::eval(&world, scenes, seed, json),
+        EvalTarget::Run { world, scenes, seed, json, shard, out, resume, jobs, cameras, hand_eye } => {
+            let env = |k: &str| std::env::var(k).ok();
+            let shard =
+                shard.map_or(Ok(marvin::eval::batch::Shard::ALL), |s| marvin::eval::batch::Shard::parse(&s, &env))?;
+            let jobs = jobs as usize;
+            let b =
+                super::eval_run_batch::Batch { world, scenes, seed, json, shard, out, resume, jobs, cameras, hand_eye };
+            return super::eval_run_batch::eval(&b);
+        }
+        EvalTarget::Merge { files, json } => return merge(&files, json),
         EvalTarget::Calibrate {
             what: Some(EvalCalibrateWhat::Cameras { world, trials, seed, poses, json }), ..
         } => {
@@ -431,4 +470,17 @@ fn run_locate(
         ],
     );
     if json { emit(&report.to_string()) } else { emit(&serde_json::to_string_pretty(&report)?) }
+}
+
+/// `marvin eval merge`: the records of every shard, checked to be one whole batch, summarised.
+fn merge(files: &[PathBuf], json: bool) -> anyhow::Result<()> {
+    let mut records = Vec::new();
+    for f in files {
+        records.extend(marvin::eval::batch::read_records(f)?);
+    }
+    let records = marvin::eval::batch::check_batch(records)?;
+    match records[0].verb.as_str() {
+        "run" => super::eval_run_batch::print_report(&super::eval_run_batch::summarise(&records)?, json),
+        other => anyhow::bail!("records of `eval {other}`: only `eval run` records can be merged so far"),
+    }
 }

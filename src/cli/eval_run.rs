@@ -2,23 +2,15 @@
 //! reading the simulation's truth in-process ([`Server::truth`]; the socket does not serve it),
 //! and judges it after the fact (what was on the table,
 //! what each pick went for, what ended in the bin, how far the calibration was from the true
-//! camera); `marvin eval run` sums seeded runs.
+//! camera); `marvin eval run` ([`super::eval_run_batch`]) sums seeded runs.
 
-use super::calibrate::Cell;
-use super::cameras::cameras;
-use super::output::emit;
-use super::session::{HandEye, Watcher, failures, hand_eye, outcome_name, run_once};
-use anyhow::Context;
+use super::session::Watcher;
 use marvin::engine::calibrate::Calibration;
 use marvin::engine::recording::Recording;
-use marvin::engine::run::{Cycle, RunConfig, Stop};
 use marvin::protocol::TruthReply;
 use marvin::server::Server;
 use nalgebra::Isometry3;
 use serde_json::{Value, json};
-use std::collections::BTreeMap;
-use std::path::Path;
-use std::time::Instant;
 use vision::matcher::Located;
 
 /// One pick as evaluation judged it.
@@ -116,7 +108,7 @@ fn nearest_object(
 }
 
 /// How far a camera pose is from the true one: mm and degrees.
-fn calibration_error(server: &Server, cam_from_base: &Isometry3<f64>) -> anyhow::Result<(f64, f64)> {
+pub fn calibration_error(server: &Server, cam_from_base: &Isometry3<f64>) -> anyhow::Result<(f64, f64)> {
     let t = server.truth()?.cam_from_base.to_isometry("cam_from_base")?;
     Ok((
         (cam_from_base.translation.vector - t.translation.vector).norm() * 1e3,
@@ -231,107 +223,6 @@ impl Watcher for Judge<'_> {
         }
         Ok(())
     }
-}
-
-/// `marvin eval run`: seeded end-to-end runs, one camera calibration and one hand-eye
-/// calibration (on the first seed's scene) shared by all: the cameras and the robot stand where the world file puts them in every scene.
-pub fn eval(world: &Path, scenes: u64, seed: u64, json: bool) -> anyhow::Result<()> {
-    let scn = sim::Scenario::load(world)?;
-    let cell = Cell::start(world, seed, None)?;
-    let (mut client, hello) = cell.connect_greeted()?;
-    let (cameras, _) = cameras(&mut client, &hello, &scn.library, None, seed, true, false)?;
-    let (cam_from_base, _) = hand_eye(&mut client, &scn.library, &HandEye::Calibrate, seed, true, &cameras)?;
-    let calibration_error = calibration_error(cell.local().context("a local server")?, &cam_from_base)?;
-    client.bye()?;
-    cell.stop()?;
-    let progress = super::output::Progress::new(scenes, json);
-    let (mut on_table, mut cleared, mut picks, mut placed, mut wrong) = (0, 0, 0, 0, Vec::new());
-    let (mut first_attempts, mut first_placed, mut unsettled) = (0, 0, 0);
-    let (mut cycles, mut cycle_s, mut vision_ms) = (0usize, Vec::new(), Vec::new());
-    let mut all_failures: BTreeMap<String, usize> = BTreeMap::new();
-    let mut stops: BTreeMap<&'static str, usize> = BTreeMap::new();
-    for k in 0..scenes {
-        let s = seed + k;
-        let clock = Instant::now();
-        let cell = Cell::start(world, s, None)?;
-        let known = HandEye::Known(cam_from_base);
-        let mut judge = Judge::new(cell.local(), &scn.library);
-        let config = RunConfig { cameras: Some(cameras.clone()), ..RunConfig::default() };
-        let r = run_once(&cell, &scn, s, &known, &config, true, &mut |_| String::new(), None, &mut judge)?;
-        let truth = judge.verdict().truth.context("a local server gives the truth")?;
-        cell.stop()?;
-        // A pick succeeds when the server placed the part it aimed at and that part is of the
-        // model chosen, where vision saw it (a wrong pick the server placed is no success).
-        let tried: Vec<&Cycle> = r.cycles.iter().filter(|c| c.chosen.is_some()).collect();
-        let success: Vec<bool> = tried
-            .iter()
-            .zip(&truth.picks)
-            .map(|(c, judged)| outcome_name(c) == "placed" && judged.target().is_some())
-            .collect();
-        let (p, ok) = (tried.len(), success.iter().filter(|s| **s).count());
-        (on_table, cleared, picks, placed) =
-            (on_table + truth.on_table_at_start, cleared + truth.in_bin_at_end, picks + p, placed + ok);
-        wrong.extend(truth.wrong_picks().map(|p| {
-            json!({ "seed": s, "cycle": p.cycle + 1, "model": p.model, "support": p.support_fraction,
-                    "image_support": p.image_support,
-                    "outcome": r.cycles.get(p.cycle).map(outcome_name), "nearest_of_model_mm": p.nearest.map(|(_, mm, _)| mm),
-                    "nearest_of_model_deg": p.nearest.map(|(_, _, deg)| deg),
-                    "nearest_object": p.nearest_any.as_ref().map(|(id, model, mm)| json!({ "id": id, "model": model, "mm": mm })) })
-        }));
-        unsettled += usize::from(truth.unsettled.is_some());
-        for (ok, first) in success.iter().zip(truth.first_attempts()) {
-            first_attempts += usize::from(first);
-            first_placed += usize::from(first && *ok);
-        }
-        cycles += r.cycles.len();
-        cycle_s.extend(r.cycles.iter().map(|c| c.cycle_s));
-        vision_ms.extend(r.cycles.iter().map(Cycle::vision_ms));
-        for (kind, n) in failures(&r.cycles) {
-            *all_failures.entry(kind).or_insert(0) += n;
-        }
-        let stop = match r.stop {
-            Stop::NothingLocated => "nothing_located",
-            Stop::NothingPickable => "nothing_pickable",
-            Stop::MaxCycles => "max_cycles",
-        };
-        *stops.entry(stop).or_insert(0) += 1;
-        progress.step(format!(
-            "seed {s}: {} of {} cleared, {ok} of {p} picks placed, stopped by {stop} ({:.1} s)",
-            truth.in_bin_at_end,
-            truth.on_table_at_start,
-            clock.elapsed().as_secs_f64()
-        ));
-    }
-    progress.finish();
-    let q = |v: &[f64], p: f64| marvin::eval::quantile(v, p);
-    let mut report = json!({
-        "world": scn.world.name,
-        "seeds": [seed, seed + scenes - 1],
-        "scenes": scenes,
-        "calibration": "one, on the first seed's scene, shared by all scenes",
-        "calibration_error": json!({ "translation_mm": calibration_error.0, "rotation_deg": calibration_error.1 }),
-        "cleared_fraction": cleared as f64 / on_table.max(1) as f64,
-        "pick_success_rate": placed as f64 / picks.max(1) as f64,
-        "first_attempt_success_rate": first_placed as f64 / first_attempts.max(1) as f64,
-        "attempts_per_object": picks as f64 / placed.max(1) as f64,
-        "wrong_model_picks": wrong.len(),
-        "wrong_picks": wrong,
-        "cycles_mean": cycles as f64 / scenes.max(1) as f64,
-        "cycle_s_mean": cycle_s.iter().sum::<f64>() / cycle_s.len().max(1) as f64,
-        "vision_cycle_ms_median": q(&vision_ms, 0.5),
-        "failures": all_failures,
-        "stopped_by": stops,
-        "unsettled_scenes": unsettled,
-    });
-    marvin::eval::add_intervals(
-        &mut report,
-        &[
-            ("cleared_fraction", cleared, on_table),
-            ("pick_success_rate", placed, picks),
-            ("first_attempt_success_rate", first_placed, first_attempts),
-        ],
-    );
-    if json { emit(&report.to_string()) } else { emit(&serde_json::to_string_pretty(&report)?) }
 }
 
 #[cfg(test)]

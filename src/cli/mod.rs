@@ -3,6 +3,7 @@
 //! - [`run`]: the main job, pick cycles until the table is clear.
 //! - [`session`]: one run on a robot server, shared by `run` and `eval run`.
 //! - [`eval_run`]: seeded runs judged against the simulation's truth.
+//! - [`eval_run_batch`]: `eval run` over a seed range: shards, records per scene, merging.
 //! - [`render`]: settle a world and render both cameras.
 //! - [`edges`]: Canny and edge strings of any image.
 //! - [`stereo`]: the front end on any stereo pair.
@@ -28,6 +29,7 @@ pub mod edges;
 pub mod eval;
 pub mod eval_pick;
 pub mod eval_run;
+pub mod eval_run_batch;
 pub mod locate;
 pub mod locate_pair;
 pub mod output;

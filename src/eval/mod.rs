@@ -3,9 +3,11 @@
 //!
 //! - [`truth`]: the truth itself: exact ray casts into the settled scene, the cameras as
 //!   evaluation places them, and [`truth::AskTruth`], the server's evaluation-only request.
+//! - [`batch`]: batches at scale: shards of a seed range, a JSON line per scene, merging.
 //! - This file: disparity and coverage figures, located and false reports, quantiles and
 //!   Wilson intervals.
 
+pub mod batch;
 pub mod truth;
 
 use self::truth::{EvalCameras, TruthScene};

@@ -1,0 +1,326 @@
+//! `marvin eval run` over a seed range: one camera calibration and one hand-eye calibration
+//! (on the range's first scene, or from files) shared by every scene; the scenes of `--shard`,
+//! `--jobs` at a time, each recorded as it ends (`--out`, `--resume`); and the summary, which
+//! `marvin eval merge` makes the same way from the records of every shard.
+
+use super::calibrate::Cell;
+use super::cameras::cameras;
+use super::eval_run::{Judge, calibration_error};
+use super::output::emit;
+use super::session::{HandEye, failures, hand_eye, outcome_name, run_once};
+use anyhow::{Context, bail};
+use marvin::engine::run::{Cycle, RunConfig, Stop};
+use marvin::eval::batch::{Record, RecordFile, Shard, code_version, read_records};
+use nalgebra::Isometry3;
+use serde::{Deserialize, Serialize};
+use serde_json::{Value, json};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::time::Instant;
+
+/// How to run a batch of scenes.
+pub struct Batch {
+    pub world: PathBuf,
+    pub scenes: u64,
+    pub seed: u64,
+    pub json: bool,
+    pub shard: Shard,
+    /// Where each scene's record is appended as it ends.
+    pub out: Option<PathBuf>,
+    /// Skip the scenes already in `out`.
+    pub resume: bool,
+    /// Scenes at once.
+    pub jobs: usize,
+    /// Measured cameras and hand-eye transform to share, instead of calibrating first.
+    pub cameras: Option<PathBuf>,
+    pub hand_eye: Option<PathBuf>,
+}
+
+/// What `eval run` keeps of one scene.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunScene {
+    pub on_table: usize,
+    pub cleared: usize,
+    pub picks: usize,
+    pub placed: usize,
+    pub first_attempts: usize,
+    pub first_placed: usize,
+    pub wrong_picks: Vec<Value>,
+    pub cycles: usize,
+    pub failures: BTreeMap<String, usize>,
+    pub stopped_by: String,
+    pub unsettled: bool,
+    /// Wall times: they differ from machine to machine and run to run.
+    pub cycle_s: Vec<f64>,
+    pub vision_ms: Vec<f64>,
+}
+
+/// `marvin eval run`.
+pub fn eval(b: &Batch) -> anyhow::Result<()> {
+    let scn = sim::Scenario::load(&b.world)?;
+    let mut file = open_out(b)?;
+    let done = match (&b.out, b.resume) {
+        (Some(path), true) if path.exists() => earlier_records(path, b)?,
+        _ => Vec::new(),
+    };
+    let (shared_cameras, cam_from_base, shared) = shared_calibration(b, &scn)?;
+    if let Some(r) = done.iter().find(|r| r.shared != shared) {
+        bail!(
+            "{}: seed {} was run with another calibration ({}); this run's is {shared}",
+            out_name(b),
+            r.seed,
+            r.shared
+        );
+    }
+    let todo: Vec<u64> =
+        b.shard.seeds(b.seed, b.scenes).into_iter().filter(|s| !done.iter().any(|r| r.seed == *s)).collect();
+    let progress = super::output::Progress::new(todo.len() as u64, b.json);
+    let finished = Mutex::new(done);
+    let next = Mutex::new(todo.into_iter());
+    let first_error: Mutex<Option<anyhow::Error>> = Mutex::new(None);
+    let worker = || {
+        while let Some(s) = next.lock().unwrap_or_else(|e| e.into_inner()).next() {
+            if first_error.lock().unwrap_or_else(|e| e.into_inner()).is_some() {
+                return;
+            }
+            let clock = Instant::now();
+            let outcome = run_scene(&b.world, &scn, s, &shared_cameras, &cam_from_base).and_then(|scene| {
+                let record = Record {
+                    verb: "run".into(),
+                    world: b.world.display().to_string(),
+                    range: [b.seed, b.seed + b.scenes - 1],
+                    version: code_version(),
+                    seed: s,
+                    shared: shared.clone(),
+                    scene: serde_json::to_value(&scene)?,
+                };
+                if let Some(f) = file.as_ref() {
+                    f.lock().unwrap_or_else(|e| e.into_inner()).write(&record)?;
+                }
+                progress.step(format!(
+                    "seed {s}: {} of {} cleared, {} of {} picks placed, stopped by {} ({:.1} s)",
+                    scene.cleared,
+                    scene.on_table,
+                    scene.placed,
+                    scene.picks,
+                    scene.stopped_by,
+                    clock.elapsed().as_secs_f64()
+                ));
+                finished.lock().unwrap_or_else(|e| e.into_inner()).push(record);
+                Ok(())
+            });
+            if let Err(e) = outcome {
+                first_error.lock().unwrap_or_else(|e| e.into_inner()).get_or_insert(e.context(format!("seed {s}")));
+            }
+        }
+    };
+    std::thread::scope(|scope| {
+        for _ in 0..b.jobs.max(1) {
+            scope.spawn(&worker);
+        }
+    });
+    progress.finish();
+    if let Some(e) = first_error.into_inner().unwrap_or_else(|e| e.into_inner()) {
+        return Err(e);
+    }
+    file.take();
+    let mut records = finished.into_inner().unwrap_or_else(|e| e.into_inner());
+    records.sort_by_key(|r| r.seed);
+    let mut report = summarise(&records)?;
+    if b.shard != Shard::ALL {
+        report["shard"] = json!(format!("{}/{}", b.shard.index + 1, b.shard.count));
+    }
+    print_report(&report, b.json)
+}
+
+/// The `--out` file, opened to append to: refused if it holds records already and `--resume`
+/// was not asked for (appending would record scenes twice).
+fn open_out(b: &Batch) -> anyhow::Result<Option<Mutex<RecordFile>>> {
+    let Some(path) = &b.out else {
+        if b.resume {
+            bail!("--resume needs --out FILE (the records to carry on from)");
+        }
+        return Ok(None);
+    };
+    let holds_records = std::fs::metadata(path).is_ok_and(|m| m.len() > 0);
+    if holds_records && !b.resume {
+        bail!("{} holds scene records already: --resume to carry on from them, or give another file", path.display());
+    }
+    Ok(Some(Mutex::new(RecordFile::append(path)?)))
+}
+
+fn out_name(b: &Batch) -> String {
+    b.out.as_ref().map_or_else(String::new, |p| p.display().to_string())
+}
+
+/// The records a resumed batch carries on from: of this verb, world, range and code.
+fn earlier_records(path: &Path, b: &Batch) -> anyhow::Result<Vec<Record>> {
+    let records = read_records(path)?;
+    let range = [b.seed, b.seed + b.scenes - 1];
+    let world = b.world.display().to_string();
+    if let Some(r) = records.iter().find(|r| r.verb != "run" || r.world != world || r.range != range) {
+        bail!(
+            "{}: seed {} is of `eval {}` on {} over {:?}, not `eval run` on {world} over {range:?}",
+            path.display(),
+            r.seed,
+            r.verb,
+            r.world,
+            r.range
+        );
+    }
+    if let Some(r) = records.iter().find(|r| r.version != code_version()) {
+        bail!("{}: seed {} was run by {}, this is {}", path.display(), r.seed, r.version, code_version());
+    }
+    Ok(records)
+}
+
+/// The cameras and the hand-eye transform every scene shares, from files or calibrated on the
+/// range's first scene (whatever the shard: every shard makes the same calibration), and what
+/// the records say of them.
+fn shared_calibration(
+    b: &Batch,
+    scn: &sim::Scenario,
+) -> anyhow::Result<(mesh::StereoCalibration, Isometry3<f64>, Value)> {
+    let given = b.cameras.as_deref().map(super::calibrate::load_cameras).transpose()?;
+    let cell = Cell::start(&b.world, b.seed, None)?;
+    let (mut client, hello) = cell.connect_greeted()?;
+    let (cameras, _) = cameras(&mut client, &hello, &scn.library, given.as_ref(), b.seed, true, false)?;
+    let source = match &b.hand_eye {
+        Some(f) => HandEye::File(f.clone()),
+        None => HandEye::Calibrate,
+    };
+    let (cam_from_base, _) = hand_eye(&mut client, &scn.library, &source, b.seed, true, &cameras)?;
+    let (mm, deg) = calibration_error(cell.local().context("a local server")?, &cam_from_base)?;
+    client.bye()?;
+    cell.stop()?;
+    let how = match (&b.cameras, &b.hand_eye) {
+        (None, None) => format!("one, on seed {}'s scene, shared by all scenes", b.seed),
+        _ => "from files, shared by all scenes".into(),
+    };
+    let shared = json!({
+        "world_name": scn.world.name,
+        "calibration": how,
+        "calibration_error": { "translation_mm": mm, "rotation_deg": deg },
+    });
+    Ok((cameras, cam_from_base, shared))
+}
+
+/// One scene's run, judged.
+fn run_scene(
+    world: &Path,
+    scn: &sim::Scenario,
+    s: u64,
+    cameras: &mesh::StereoCalibration,
+    cam_from_base: &Isometry3<f64>,
+) -> anyhow::Result<RunScene> {
+    let cell = Cell::start(world, s, None)?;
+    let known = HandEye::Known(*cam_from_base);
+    let mut judge = Judge::new(cell.local(), &scn.library);
+    let config = RunConfig { cameras: Some(cameras.clone()), ..RunConfig::default() };
+    let r = run_once(&cell, scn, s, &known, &config, true, &mut |_| String::new(), None, &mut judge)?;
+    let truth = judge.verdict().truth.context("a local server gives the truth")?;
+    cell.stop()?;
+    // A pick succeeds when the server placed the part it aimed at and that part is of the
+    // model chosen, where vision saw it (a wrong pick the server placed is no success).
+    let tried: Vec<&Cycle> = r.cycles.iter().filter(|c| c.chosen.is_some()).collect();
+    let success: Vec<bool> = tried
+        .iter()
+        .zip(&truth.picks)
+        .map(|(c, judged)| outcome_name(c) == "placed" && judged.target().is_some())
+        .collect();
+    let firsts = truth.first_attempts();
+    let wrong_picks = truth
+        .wrong_picks()
+        .map(|p| {
+            json!({ "seed": s, "cycle": p.cycle + 1, "model": p.model, "support": p.support_fraction,
+                    "image_support": p.image_support,
+                    "outcome": r.cycles.get(p.cycle).map(outcome_name), "nearest_of_model_mm": p.nearest.map(|(_, mm, _)| mm),
+                    "nearest_of_model_deg": p.nearest.map(|(_, _, deg)| deg),
+                    "nearest_object": p.nearest_any.as_ref().map(|(id, model, mm)| json!({ "id": id, "model": model, "mm": mm })) })
+        })
+        .collect();
+    let stopped_by = match r.stop {
+        Stop::NothingLocated => "nothing_located",
+        Stop::NothingPickable => "nothing_pickable",
+        Stop::MaxCycles => "max_cycles",
+    };
+    Ok(RunScene {
+        on_table: truth.on_table_at_start,
+        cleared: truth.in_bin_at_end,
+        picks: tried.len(),
+        placed: success.iter().filter(|s| **s).count(),
+        first_attempts: firsts.iter().filter(|f| **f).count(),
+        first_placed: success.iter().zip(&firsts).filter(|(ok, first)| **ok && **first).count(),
+        wrong_picks,
+        cycles: r.cycles.len(),
+        failures: failures(&r.cycles),
+        stopped_by: stopped_by.into(),
+        unsettled: truth.unsettled.is_some(),
+        cycle_s: r.cycles.iter().map(|c| c.cycle_s).collect(),
+        vision_ms: r.cycles.iter().map(Cycle::vision_ms).collect(),
+    })
+}
+
+/// The summary of `eval run` records (sorted by seed), as one process over them prints it.
+/// Everything but `cycle_s_mean` and `vision_cycle_ms_median` (wall times) is a function of the
+/// records' scenes alone.
+pub fn summarise(records: &[Record]) -> anyhow::Result<Value> {
+    let first = records.first().context("no scenes to summarise")?;
+    let scenes: Vec<RunScene> = records
+        .iter()
+        .map(|r| {
+            serde_json::from_value(r.scene.clone()).with_context(|| format!("seed {}: not an `eval run` scene", r.seed))
+        })
+        .collect::<anyhow::Result<_>>()?;
+    let sum = |f: fn(&RunScene) -> usize| scenes.iter().map(f).sum::<usize>();
+    let (on_table, cleared, picks, placed) =
+        (sum(|s| s.on_table), sum(|s| s.cleared), sum(|s| s.picks), sum(|s| s.placed));
+    let (first_attempts, first_placed) = (sum(|s| s.first_attempts), sum(|s| s.first_placed));
+    let mut all_failures: BTreeMap<String, usize> = BTreeMap::new();
+    let mut stops: BTreeMap<String, usize> = BTreeMap::new();
+    for s in &scenes {
+        for (kind, n) in &s.failures {
+            *all_failures.entry(kind.clone()).or_insert(0) += n;
+        }
+        *stops.entry(s.stopped_by.clone()).or_insert(0) += 1;
+    }
+    let wrong: Vec<Value> = scenes.iter().flat_map(|s| s.wrong_picks.clone()).collect();
+    let cycle_s: Vec<f64> = scenes.iter().flat_map(|s| s.cycle_s.clone()).collect();
+    let vision_ms: Vec<f64> = scenes.iter().flat_map(|s| s.vision_ms.clone()).collect();
+    let n = scenes.len();
+    let mut report = json!({
+        "world": first.shared["world_name"],
+        "seeds": first.range,
+        "scenes": n,
+        "calibration": first.shared["calibration"],
+        "calibration_error": first.shared["calibration_error"],
+        "cleared_fraction": cleared as f64 / on_table.max(1) as f64,
+        "pick_success_rate": placed as f64 / picks.max(1) as f64,
+        "first_attempt_success_rate": first_placed as f64 / first_attempts.max(1) as f64,
+        "attempts_per_object": picks as f64 / placed.max(1) as f64,
+        "wrong_model_picks": wrong.len(),
+        "wrong_picks": wrong,
+        "cycles_mean": sum(|s| s.cycles) as f64 / n.max(1) as f64,
+        "cycle_s_mean": cycle_s.iter().sum::<f64>() / cycle_s.len().max(1) as f64,
+        "vision_cycle_ms_median": marvin::eval::quantile(&vision_ms, 0.5),
+        "failures": all_failures,
+        "stopped_by": stops,
+        "unsettled_scenes": scenes.iter().filter(|s| s.unsettled).count(),
+        "version": first.version,
+    });
+    marvin::eval::add_intervals(
+        &mut report,
+        &[
+            ("cleared_fraction", cleared, on_table),
+            ("pick_success_rate", placed, picks),
+            ("first_attempt_success_rate", first_placed, first_attempts),
+        ],
+    );
+    Ok(report)
+}
+
+/// Prints a summary as `--json` asks (one line) or pretty.
+pub fn print_report(report: &Value, json: bool) -> anyhow::Result<()> {
+    if json { emit(&report.to_string()) } else { emit(&serde_json::to_string_pretty(report)?) }
+}

@@ -1,0 +1,120 @@
+//! `marvin eval run` as a batch at scale: shards merged, scenes run two at a time, and a batch
+//! killed in the middle and resumed, each giving the figures of one process over the same seeds.
+//! On tuning seeds 1-4 of the ideal world, with the cameras and the hand-eye transform from files
+//! (`tests/fixtures/ideal_seed3/`: `marvin calibrate cameras worlds/ideal/widgets.toml --seed 3`,
+//! then `marvin calibrate ... --cameras` through them), as a cluster's shards share them.
+
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+const FIXTURES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/fixtures/ideal_seed3");
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn marvin() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_marvin"));
+    c.current_dir(env!("CARGO_MANIFEST_DIR"));
+    c
+}
+
+/// `eval run` of seeds 1-4 with the shared files, and `extra`.
+fn eval_run(extra: &[&str]) -> Command {
+    let mut c = marvin();
+    c.args(["eval", "run", "worlds/ideal/widgets.toml", "--scenes", "4", "--seed", "1", "--json"])
+        .args(["--cameras", &format!("{FIXTURES}/cameras.json"), "--hand-eye", &format!("{FIXTURES}/hand_eye.json")])
+        .args(extra);
+    c
+}
+
+fn ok(o: Output) -> Value {
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
+/// The summary without its wall times (which differ between any two runs) and its shard label.
+fn figures(mut v: Value) -> Value {
+    for k in ["cycle_s_mean", "vision_cycle_ms_median", "shard"] {
+        v.as_object_mut().unwrap().remove(k);
+    }
+    v
+}
+
+#[test]
+fn shards_merged_jobs_and_a_resumed_batch_give_one_processs_figures() {
+    let dir = scratch("batch_run");
+    let p = |name: &str| dir.join(name).display().to_string();
+    let whole = figures(ok(eval_run(&[]).output().unwrap()));
+    assert_eq!(whole["scenes"], 4);
+
+    // Four shards, one scene each, merged.
+    for k in 1..=4 {
+        ok(eval_run(&["--shard", &format!("{k}/4"), "--out", &p(&format!("s{k}.jsonl"))]).output().unwrap());
+    }
+    let shards: Vec<String> = (1..=4).map(|k| p(&format!("s{k}.jsonl"))).collect();
+    let mut merge = marvin();
+    merge.args(["eval", "merge", "--json"]).args(&shards);
+    assert_eq!(figures(ok(merge.output().unwrap())), whole, "four shards merged");
+
+    // Two scenes at a time.
+    assert_eq!(figures(ok(eval_run(&["--jobs", "2"]).output().unwrap())), whole, "--jobs 2");
+
+    // Killed once its first scene is recorded, then resumed.
+    let out = p("killed.jsonl");
+    let mut child = eval_run(&["--out", &out]).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
+    let clock = Instant::now();
+    while std::fs::read_to_string(&out).map_or(0, |t| t.lines().count()) < 1 {
+        assert!(clock.elapsed() < Duration::from_secs(300), "no scene recorded");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let before = std::fs::read_to_string(&out).unwrap().lines().count();
+    assert!(before < 4, "killed before the end ({before} scenes recorded)");
+    let resumed = figures(ok(eval_run(&["--out", &out, "--resume"]).output().unwrap()));
+    assert_eq!(resumed, whole, "killed after {before} scenes and resumed");
+    let mut merge = marvin();
+    merge.args(["eval", "merge", "--json", &out]);
+    assert_eq!(figures(ok(merge.output().unwrap())), whole, "the resumed file merged alone");
+
+    // What merge refuses, saying why.
+    let mut merge = marvin();
+    let o = merge.args(["eval", "merge", &shards[0], &shards[2]]).output().unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && e.contains("missing [2, 4]"), "{e}");
+    let twice = [shards[0].clone(), shards[0].clone(), shards[1].clone(), shards[2].clone(), shards[3].clone()];
+    let o = marvin().args(["eval", "merge"]).args(twice).output().unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && e.contains("more than once [1]"), "{e}");
+    let other = p("other_version.jsonl");
+    let text = std::fs::read_to_string(&shards[3]).unwrap();
+    let mut record: Value = serde_json::from_str(text.lines().next().unwrap()).unwrap();
+    record["version"] = Value::from("0.0.0 (elsewhere)");
+    std::fs::write(&other, format!("{record}\n")).unwrap();
+    let o = marvin().args(["eval", "merge", &shards[0], &shards[1], &shards[2], &other]).output().unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && e.contains("code versions"), "{e}");
+    // A file that holds records is not appended to without --resume.
+    let o = eval_run(&["--out", &out]).output().unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && e.contains("--resume"), "{e}");
+}
+
+#[test]
+fn shard_auto_without_a_scheduler_is_refused_naming_what_it_looked_for() {
+    let o = eval_run(&["--shard", "auto"])
+        .env_remove("SLURM_ARRAY_TASK_ID")
+        .env_remove("JOB_COMPLETION_INDEX")
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && e.contains("SLURM_ARRAY_TASK_ID") && e.contains("JOB_COMPLETION_INDEX"), "{e}");
+    let o = eval_run(&["--shard", "5/4"]).output().unwrap();
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("K must be 1 to N"));
+}
