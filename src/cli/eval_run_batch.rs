@@ -117,7 +117,7 @@ pub fn eval(b: &Batch) -> anyhow::Result<()> {
     };
     std::thread::scope(|scope| {
         for _ in 0..b.jobs.max(1) {
-            scope.spawn(&worker);
+            scope.spawn(worker);
         }
     });
     progress.finish();
