@@ -129,21 +129,44 @@ fn layout_paths(readme: &str) -> Vec<String> {
         .collect()
 }
 
-/// What a newcomer would look for in the table: the repository's top-level folders, and every
-/// file and folder of `src/`.
-fn entries_to_name() -> Vec<String> {
-    let mut out = Vec::new();
-    let skip = ["target", ".git", ".gitignore", "Cargo.toml", "Cargo.lock", "README.md", "rustfmt.toml"];
-    for entry in std::fs::read_dir(root()).unwrap() {
-        let name = entry.unwrap().file_name().to_string_lossy().into_owned();
-        if !skip.contains(&name.as_str()) {
-            out.push(name);
+/// The repository's files as git tracks them (a checkout's own scratch, ignored or untracked,
+/// is not the repository's), or, outside a git checkout, the files on the disk.
+fn tracked_files() -> Vec<PathBuf> {
+    let git = std::process::Command::new("git").args(["ls-files"]).current_dir(root()).output();
+    match git {
+        Ok(o) if o.status.success() => String::from_utf8_lossy(&o.stdout).lines().map(PathBuf::from).collect(),
+        _ => {
+            let mut files = Vec::new();
+            for entry in std::fs::read_dir(root()).unwrap() {
+                let path = entry.unwrap().path();
+                files.push(path.strip_prefix(root()).unwrap().join("-"));
+            }
+            for entry in std::fs::read_dir(root().join("src")).unwrap() {
+                files.push(Path::new("src").join(entry.unwrap().file_name()).join("-"));
+            }
+            files
         }
     }
-    for entry in std::fs::read_dir(root().join("src")).unwrap() {
-        out.push(format!("src/{}", entry.unwrap().file_name().to_string_lossy()));
+}
+
+/// What a newcomer would look for in the table: the repository's top-level folders and files,
+/// and every file and folder of `src/`.
+fn entries_to_name() -> Vec<String> {
+    let skip = ["target", ".git", ".gitignore", "Cargo.toml", "Cargo.lock", "README.md", "rustfmt.toml"];
+    let mut out: Vec<String> = Vec::new();
+    for f in tracked_files() {
+        let parts: Vec<String> = f.iter().map(|p| p.to_string_lossy().into_owned()).collect();
+        let entry = match parts.as_slice() {
+            [src, inner, ..] if src == "src" => format!("src/{inner}"),
+            [first, ..] => first.clone(),
+            [] => continue,
+        };
+        if !skip.contains(&entry.as_str()) {
+            out.push(entry);
+        }
     }
     out.sort();
+    out.dedup();
     out
 }
 
