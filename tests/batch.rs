@@ -118,3 +118,32 @@ fn shard_auto_without_a_scheduler_is_refused_naming_what_it_looked_for() {
     let o = eval_run(&["--shard", "5/4"]).output().unwrap();
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("K must be 1 to N"));
 }
+
+/// `eval locate` batched the same way: two shards merged and two scenes at a time give one
+/// process's figures (tuning seeds 1-4, the table placed by the shared hand-eye file).
+#[test]
+fn eval_locate_shards_merged_and_jobs_give_one_processs_figures() {
+    let dir = scratch("batch_locate");
+    let p = |name: &str| dir.join(name).display().to_string();
+    let locate = |extra: &[&str]| {
+        let mut c = marvin();
+        c.args(["eval", "locate", "worlds/ideal/widgets.toml", "--scenes", "4", "--seed", "1", "--json"])
+            .args(["--hand-eye", &format!("{FIXTURES}/hand_eye.json")])
+            .args(extra);
+        c
+    };
+    let without_time = |mut v: Value| {
+        for k in ["match_ms_median", "shard"] {
+            v.as_object_mut().unwrap().remove(k);
+        }
+        v
+    };
+    let whole = without_time(ok(locate(&[]).output().unwrap()));
+    assert_eq!(whole["scenes"], 4);
+    for k in 1..=2 {
+        ok(locate(&["--shard", &format!("{k}/2"), "--out", &p(&format!("s{k}.jsonl"))]).output().unwrap());
+    }
+    let o = marvin().args(["eval", "merge", "--json", &p("s1.jsonl"), &p("s2.jsonl")]).output().unwrap();
+    assert_eq!(without_time(ok(o)), whole, "two shards merged");
+    assert_eq!(without_time(ok(locate(&["--jobs", "2"]).output().unwrap())), whole, "--jobs 2");
+}

@@ -71,21 +71,8 @@ pub enum EvalTarget {
         seed: u64,
         #[arg(long)]
         json: bool,
-        /// Run shard K of N of the scenes (those whose index from the first, counting from 0,
-        /// leaves K - 1 divided by N), or `auto`: the index a Slurm job array
-        /// (SLURM_ARRAY_TASK_ID) or a Kubernetes Indexed Job (JOB_COMPLETION_INDEX, with
-        /// JOB_COMPLETIONS set) gives. Every shard calibrates on the range's first scene.
-        #[arg(long)]
-        shard: Option<String>,
-        /// Append one JSON line per scene to this file as the scene ends (for `eval merge`).
-        #[arg(long)]
-        out: Option<PathBuf>,
-        /// Skip the scenes already in --out's file and carry on.
-        #[arg(long, requires = "out")]
-        resume: bool,
-        /// Scenes run at once (each with its own robot server); the figures do not depend on it.
-        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..=64))]
-        jobs: u64,
+        #[command(flatten)]
+        batch: BatchArgs,
         /// Measured cameras to share (`marvin calibrate cameras`), instead of calibrating first.
         #[arg(long)]
         cameras: Option<PathBuf>,
@@ -183,7 +170,42 @@ pub enum EvalTarget {
         /// the first seed's scene.
         #[arg(long)]
         hand_eye: Option<PathBuf>,
+        #[command(flatten)]
+        batch: BatchArgs,
     },
+}
+
+/// How a batch of seeded scenes is run at scale (`docs/SCALE.md`).
+#[derive(clap::Args, Debug)]
+pub struct BatchArgs {
+    /// Run shard K of N of the scenes (those whose index from the first, counting from 0,
+    /// leaves K - 1 divided by N), or `auto`: the index a Slurm job array
+    /// (SLURM_ARRAY_TASK_ID) or a Kubernetes Indexed Job (JOB_COMPLETION_INDEX, with
+    /// JOB_COMPLETIONS set) gives.
+    #[arg(long)]
+    shard: Option<String>,
+    /// Append one JSON line per scene to this file as the scene ends (for `eval merge`).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Skip the scenes already in --out's file and carry on.
+    #[arg(long, requires = "out")]
+    resume: bool,
+    /// Scenes run at once; the figures do not depend on it.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..=64))]
+    jobs: u64,
+}
+
+impl BatchArgs {
+    /// The batch of `scenes` from `seed` on `world`, its shard read from the scheduler for `auto`.
+    fn batch(self, world: PathBuf, scenes: u64, seed: u64, json: bool) -> anyhow::Result<super::batch::Batch> {
+        let env = |k: &str| std::env::var(k).ok();
+        let shard = match &self.shard {
+            Some(s) => marvin::eval::batch::Shard::parse(s, &env)?,
+            None => marvin::eval::batch::Shard::ALL,
+        };
+        let BatchArgs { out, resume, jobs, .. } = self;
+        Ok(super::batch::Batch { world, scenes, seed, json, shard, out, resume, jobs: jobs as usize })
+    }
 }
 
 /// What `marvin eval calibrate` evaluates besides the hand-eye calibration.
@@ -214,19 +236,14 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
         EvalTarget::Vision { world, scenes, seed, slices, no_deblur, json, cameras } => {
             (world, scenes, seed, slices as usize, !no_deblur, json, cameras)
         }
-        EvalTarget::Locate { world, scenes, seed, no_deblur, json, cameras, hand_eye } => {
-            let sources = LocateSources { cameras: cameras.as_deref(), hand_eye: hand_eye.as_deref() };
-            return run_locate(&world, scenes, seed, &canny_params(!no_deblur), json, &sources);
+        EvalTarget::Locate { world, scenes, seed, no_deblur, json, cameras, hand_eye, batch } => {
+            let sources = super::eval_locate::Sources { cameras, hand_eye, canny: canny_params(!no_deblur) };
+            return super::eval_locate::eval(&batch.batch(world, scenes, seed, json)?, &sources);
         }
         EvalTarget::Pick { world, trials, seed, json } => return super::eval_pick::run(&world, trials, seed, json),
-        EvalTarget::Run { world, scenes, seed, json, shard, out, resume, jobs, cameras, hand_eye } => {
-            let env = |k: &str| std::env::var(k).ok();
-            let shard =
-                shard.map_or(Ok(marvin::eval::batch::Shard::ALL), |s| marvin::eval::batch::Shard::parse(&s, &env))?;
-            let jobs = jobs as usize;
-            let b =
-                super::eval_run_batch::Batch { world, scenes, seed, json, shard, out, resume, jobs, cameras, hand_eye };
-            return super::eval_run_batch::eval(&b);
+        EvalTarget::Run { world, scenes, seed, json, batch, cameras, hand_eye } => {
+            let shared = super::eval_run_batch::Shared { cameras, hand_eye };
+            return super::eval_run_batch::eval(&batch.batch(world, scenes, seed, json)?, &shared);
         }
         EvalTarget::Merge { files, json } => return merge(&files, json),
         EvalTarget::Calibrate {
@@ -390,88 +407,6 @@ pub fn matcher_models(library: &mesh::Library, only: Option<&[String]>) -> Vec<v
         .collect()
 }
 
-/// Where `eval locate` takes vision's cameras and the table's place from.
-struct LocateSources<'a> {
-    cameras: Option<&'a std::path::Path>,
-    hand_eye: Option<&'a std::path::Path>,
-}
-
-fn run_locate(
-    world: &std::path::Path,
-    scenes: u64,
-    seed: u64,
-    canny: &vision::CannyParams,
-    json: bool,
-    sources: &LocateSources,
-) -> anyhow::Result<()> {
-    use marvin::eval::{LocateStats, locate_stats, quantile, symmetries};
-    let scn = Scenario::load(world)?;
-    let imaging = sim::imaging::Imaging::new(&scn.world);
-    let cams = eval_cameras(&imaging, sources.cameras)?;
-    let calib = cams.vision.clone();
-    let table = super::table::cam_from_table(world, &scn, &calib, sources.hand_eye, seed, json)?;
-    let models = matcher_models(&scn.library, None);
-    let symmetry: BTreeMap<String, Vec<nalgebra::Isometry3<f64>>> =
-        scn.library.models.values().map(|m| (m.name.clone(), symmetries(m))).collect();
-    let mut total = LocateStats::default();
-    let mut match_ms = Vec::new();
-    let params = marvin::engine::perception::part_params(table.cam_from_table.as_ref());
-    let mut unsettled = 0;
-    let (mut false_reports, mut missed) = (Vec::new(), Vec::new());
-    for k in 0..scenes {
-        let s = seed + k;
-        let p = run_pipeline(&scn, &imaging, s, canny, &cams);
-        unsettled += usize::from(!p.settled);
-        let lines: Vec<vision::matcher::Seg> =
-            p.front_end.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
-        let clock = std::time::Instant::now();
-        let evidence = vision::matcher::verify::ImageEvidence::of_pair(&calib, &p.front_end);
-        let located = vision::matcher::locate_all(&models, &lines, &params, Some(&evidence));
-        match_ms.push(clock.elapsed().as_secs_f64() * 1e3);
-        let stats = locate_stats(&located, &p.scene, &scn.library, &p.cams, &p.left.depth, &symmetry);
-        for f in &stats.false_reports {
-            false_reports.push(serde_json::json!({ "seed": s, "report": f }));
-        }
-        for m in &stats.missed {
-            missed.push(serde_json::json!({ "seed": s, "object": m }));
-        }
-        eprintln!(
-            "scene {}/{scenes} (seed {s}): located {}/{} visible objects, {} false of {} reports",
-            k + 1,
-            stats.located,
-            stats.eligible,
-            stats.false_positives,
-            stats.reports
-        );
-        total.add(&stats);
-    }
-    let mut report = serde_json::json!({
-        "world": scn.world.name,
-        "realism": imaging.preset,
-        "seeds": [seed, seed + scenes - 1],
-        "scenes": scenes,
-        "table": table.source,
-        "located_fraction": total.located as f64 / total.eligible.max(1) as f64,
-        "pos_err_mm_median": quantile(&total.pos_err_mm, 0.5),
-        "pos_err_mm_p90": quantile(&total.pos_err_mm, 0.9),
-        "rot_err_deg_median": quantile(&total.rot_err_deg, 0.5),
-        "false_positive_fraction": total.false_positives as f64 / total.reports.max(1) as f64,
-        "match_ms_median": quantile(&match_ms, 0.5),
-        "unsettled_scenes": unsettled,
-        "located_by_model": total.by_model.iter().map(|(m, [e, l])| (m.clone(), *l as f64 / (*e).max(1) as f64)).collect::<BTreeMap<_, _>>(),
-        "false_reports": false_reports,
-        "missed": missed,
-    });
-    marvin::eval::add_intervals(
-        &mut report,
-        &[
-            ("located_fraction", total.located, total.eligible),
-            ("false_positive_fraction", total.false_positives, total.reports),
-        ],
-    );
-    if json { emit(&report.to_string()) } else { emit(&serde_json::to_string_pretty(&report)?) }
-}
-
 /// `marvin eval merge`: the records of every shard, checked to be one whole batch, summarised.
 fn merge(files: &[PathBuf], json: bool) -> anyhow::Result<()> {
     let mut records = Vec::new();
@@ -479,8 +414,12 @@ fn merge(files: &[PathBuf], json: bool) -> anyhow::Result<()> {
         records.extend(marvin::eval::batch::read_records(f)?);
     }
     let records = marvin::eval::batch::check_batch(records)?;
+    let all = marvin::eval::batch::Shard::ALL;
     match records[0].verb.as_str() {
-        "run" => super::eval_run_batch::print_report(&super::eval_run_batch::summarise(&records)?, json),
-        other => anyhow::bail!("records of `eval {other}`: only `eval run` records can be merged so far"),
+        "run" => super::batch::print_report(super::eval_run_batch::summarise(&records)?, all, json),
+        "locate" => super::batch::print_report(super::eval_locate::summarise(&records)?, all, json),
+        other => {
+            anyhow::bail!("records of `eval {other}`: only `eval run` and `eval locate` records can be merged so far")
+        }
     }
 }

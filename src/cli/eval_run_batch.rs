@@ -3,36 +3,23 @@
 //! `--jobs` at a time, each recorded as it ends (`--out`, `--resume`); and the summary, which
 //! `marvin eval merge` makes the same way from the records of every shard.
 
+use super::batch::{Batch, Runner, print_report};
 use super::calibrate::Cell;
 use super::cameras::cameras;
 use super::eval_run::{Judge, calibration_error};
-use super::output::emit;
 use super::session::{HandEye, failures, hand_eye, outcome_name, run_once};
-use anyhow::{Context, bail};
+use anyhow::Context;
 use marvin::engine::run::{Cycle, RunConfig, Stop};
-use marvin::eval::batch::{Record, RecordFile, Shard, code_version, read_records};
+use marvin::eval::batch::Record;
 use nalgebra::Isometry3;
 use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
-use std::time::Instant;
 
-/// How to run a batch of scenes.
-pub struct Batch {
-    pub world: PathBuf,
-    pub scenes: u64,
-    pub seed: u64,
-    pub json: bool,
-    pub shard: Shard,
-    /// Where each scene's record is appended as it ends.
-    pub out: Option<PathBuf>,
-    /// Skip the scenes already in `out`.
-    pub resume: bool,
-    /// Scenes at once.
-    pub jobs: usize,
-    /// Measured cameras and hand-eye transform to share, instead of calibrating first.
+/// Where the calibration every scene shares comes from: files, or (neither given) calibrated on
+/// the range's first scene.
+pub struct Shared {
     pub cameras: Option<PathBuf>,
     pub hand_eye: Option<PathBuf>,
 }
@@ -57,122 +44,20 @@ pub struct RunScene {
 }
 
 /// `marvin eval run`.
-pub fn eval(b: &Batch) -> anyhow::Result<()> {
+pub fn eval(b: &Batch, given: &Shared) -> anyhow::Result<()> {
     let scn = sim::Scenario::load(&b.world)?;
-    let mut file = open_out(b)?;
-    let done = match (&b.out, b.resume) {
-        (Some(path), true) if path.exists() => earlier_records(path, b)?,
-        _ => Vec::new(),
-    };
-    let (shared_cameras, cam_from_base, shared) = shared_calibration(b, &scn)?;
-    if let Some(r) = done.iter().find(|r| r.shared != shared) {
-        bail!(
-            "{}: seed {} was run with another calibration ({}); this run's is {shared}",
-            out_name(b),
-            r.seed,
-            r.shared
+    let runner = Runner::open(b, "run")?;
+    let (cameras, cam_from_base, shared) = shared_calibration(b, given, &scn)?;
+    let scene = |s: u64| {
+        let scene = run_scene(&b.world, &scn, s, &cameras, &cam_from_base)?;
+        let line = format!(
+            "{} of {} cleared, {} of {} picks placed, stopped by {}",
+            scene.cleared, scene.on_table, scene.placed, scene.picks, scene.stopped_by
         );
-    }
-    let todo: Vec<u64> =
-        b.shard.seeds(b.seed, b.scenes).into_iter().filter(|s| !done.iter().any(|r| r.seed == *s)).collect();
-    let progress = super::output::Progress::new(todo.len() as u64, b.json);
-    let finished = Mutex::new(done);
-    let next = Mutex::new(todo.into_iter());
-    let first_error: Mutex<Option<anyhow::Error>> = Mutex::new(None);
-    let worker = || {
-        while let Some(s) = next.lock().unwrap_or_else(|e| e.into_inner()).next() {
-            if first_error.lock().unwrap_or_else(|e| e.into_inner()).is_some() {
-                return;
-            }
-            let clock = Instant::now();
-            let outcome = run_scene(&b.world, &scn, s, &shared_cameras, &cam_from_base).and_then(|scene| {
-                let record = Record {
-                    verb: "run".into(),
-                    world: b.world.display().to_string(),
-                    range: [b.seed, b.seed + b.scenes - 1],
-                    version: code_version(),
-                    seed: s,
-                    shared: shared.clone(),
-                    scene: serde_json::to_value(&scene)?,
-                };
-                if let Some(f) = file.as_ref() {
-                    f.lock().unwrap_or_else(|e| e.into_inner()).write(&record)?;
-                }
-                progress.step(format!(
-                    "seed {s}: {} of {} cleared, {} of {} picks placed, stopped by {} ({:.1} s)",
-                    scene.cleared,
-                    scene.on_table,
-                    scene.placed,
-                    scene.picks,
-                    scene.stopped_by,
-                    clock.elapsed().as_secs_f64()
-                ));
-                finished.lock().unwrap_or_else(|e| e.into_inner()).push(record);
-                Ok(())
-            });
-            if let Err(e) = outcome {
-                first_error.lock().unwrap_or_else(|e| e.into_inner()).get_or_insert(e.context(format!("seed {s}")));
-            }
-        }
+        Ok((serde_json::to_value(&scene)?, line))
     };
-    std::thread::scope(|scope| {
-        for _ in 0..b.jobs.max(1) {
-            scope.spawn(worker);
-        }
-    });
-    progress.finish();
-    if let Some(e) = first_error.into_inner().unwrap_or_else(|e| e.into_inner()) {
-        return Err(e);
-    }
-    file.take();
-    let mut records = finished.into_inner().unwrap_or_else(|e| e.into_inner());
-    records.sort_by_key(|r| r.seed);
-    let mut report = summarise(&records)?;
-    if b.shard != Shard::ALL {
-        report["shard"] = json!(format!("{}/{}", b.shard.index + 1, b.shard.count));
-    }
-    print_report(&report, b.json)
-}
-
-/// The `--out` file, opened to append to: refused if it holds records already and `--resume`
-/// was not asked for (appending would record scenes twice).
-fn open_out(b: &Batch) -> anyhow::Result<Option<Mutex<RecordFile>>> {
-    let Some(path) = &b.out else {
-        if b.resume {
-            bail!("--resume needs --out FILE (the records to carry on from)");
-        }
-        return Ok(None);
-    };
-    let holds_records = std::fs::metadata(path).is_ok_and(|m| m.len() > 0);
-    if holds_records && !b.resume {
-        bail!("{} holds scene records already: --resume to carry on from them, or give another file", path.display());
-    }
-    Ok(Some(Mutex::new(RecordFile::append(path)?)))
-}
-
-fn out_name(b: &Batch) -> String {
-    b.out.as_ref().map_or_else(String::new, |p| p.display().to_string())
-}
-
-/// The records a resumed batch carries on from: of this verb, world, range and code.
-fn earlier_records(path: &Path, b: &Batch) -> anyhow::Result<Vec<Record>> {
-    let records = read_records(path)?;
-    let range = [b.seed, b.seed + b.scenes - 1];
-    let world = b.world.display().to_string();
-    if let Some(r) = records.iter().find(|r| r.verb != "run" || r.world != world || r.range != range) {
-        bail!(
-            "{}: seed {} is of `eval {}` on {} over {:?}, not `eval run` on {world} over {range:?}",
-            path.display(),
-            r.seed,
-            r.verb,
-            r.world,
-            r.range
-        );
-    }
-    if let Some(r) = records.iter().find(|r| r.version != code_version()) {
-        bail!("{}: seed {} was run by {}, this is {}", path.display(), r.seed, r.version, code_version());
-    }
-    Ok(records)
+    let records = runner.run(&shared, &scene)?;
+    print_report(summarise(&records)?, b.shard, b.json)
 }
 
 /// The cameras and the hand-eye transform every scene shares, from files or calibrated on the
@@ -180,13 +65,14 @@ fn earlier_records(path: &Path, b: &Batch) -> anyhow::Result<Vec<Record>> {
 /// the records say of them.
 fn shared_calibration(
     b: &Batch,
+    given: &Shared,
     scn: &sim::Scenario,
 ) -> anyhow::Result<(mesh::StereoCalibration, Isometry3<f64>, Value)> {
-    let given = b.cameras.as_deref().map(super::calibrate::load_cameras).transpose()?;
+    let measured = given.cameras.as_deref().map(super::calibrate::load_cameras).transpose()?;
     let cell = Cell::start(&b.world, b.seed, None)?;
     let (mut client, hello) = cell.connect_greeted()?;
-    let (cameras, _) = cameras(&mut client, &hello, &scn.library, given.as_ref(), b.seed, true, false)?;
-    let source = match &b.hand_eye {
+    let (cameras, _) = cameras(&mut client, &hello, &scn.library, measured.as_ref(), b.seed, true, false)?;
+    let source = match &given.hand_eye {
         Some(f) => HandEye::File(f.clone()),
         None => HandEye::Calibrate,
     };
@@ -194,7 +80,7 @@ fn shared_calibration(
     let (mm, deg) = calibration_error(cell.local().context("a local server")?, &cam_from_base)?;
     client.bye()?;
     cell.stop()?;
-    let how = match (&b.cameras, &b.hand_eye) {
+    let how = match (&given.cameras, &given.hand_eye) {
         (None, None) => format!("one, on seed {}'s scene, shared by all scenes", b.seed),
         _ => "from files, shared by all scenes".into(),
     };
@@ -318,9 +204,4 @@ pub fn summarise(records: &[Record]) -> anyhow::Result<Value> {
         ],
     );
     Ok(report)
-}
-
-/// Prints a summary as `--json` asks (one line) or pretty.
-pub fn print_report(report: &Value, json: bool) -> anyhow::Result<()> {
-    if json { emit(&report.to_string()) } else { emit(&serde_json::to_string_pretty(report)?) }
 }

@@ -4,6 +4,8 @@
 //! - [`session`]: one run on a robot server, shared by `run` and `eval run`.
 //! - [`eval_run`]: seeded runs judged against the simulation's truth.
 //! - [`eval_run_batch`]: `eval run` over a seed range: shards, records per scene, merging.
+//! - [`eval_locate`]: the matcher over seeded scenes against the truth, batched the same way.
+//! - [`batch`]: the scene loop batched verbs share (`--shard`, `--out`, `--resume`, `--jobs`).
 //! - [`render`]: settle a world and render both cameras.
 //! - [`edges`]: Canny and edge strings of any image.
 //! - [`stereo`]: the front end on any stereo pair.
@@ -21,12 +23,14 @@
 //! - [`args`]: parsers and limits for the command line's numbers.
 
 pub mod args;
+pub mod batch;
 pub mod bench;
 pub mod calibrate;
 pub mod calibrate_cameras;
 pub mod cameras;
 pub mod edges;
 pub mod eval;
+pub mod eval_locate;
 pub mod eval_pick;
 pub mod eval_run;
 pub mod eval_run_batch;

@@ -13,7 +13,7 @@ pub mod truth;
 use self::truth::{EvalCameras, TruthScene};
 use crate::front_end::FrontEnd;
 use nalgebra::Point3;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use vision::front_end::rectify::Rectification;
 
 /// How matched disparities compare with the truth.
@@ -384,7 +384,7 @@ mod tests {
 }
 
 /// How located objects compare with the truth.
-#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct LocateStats {
     /// Objects with at least 30% of their feature-edge length visible, and how many of those
     /// were located.
@@ -405,7 +405,7 @@ pub struct LocateStats {
 }
 
 /// A report that matched no object: what it was, and what lay nearest.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FalseReport {
     pub model: String,
     pub support_fraction: f64,
@@ -418,7 +418,7 @@ pub struct FalseReport {
 }
 
 /// An eligible object that was not located.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Missed {
     pub id: usize,
     pub model: String,

@@ -1,0 +1,107 @@
+//! `marvin eval locate`: the matcher over seeded scenes against the truth, with the table placed
+//! as `marvin run` places it ([`super::table`]); batched like `eval run` (`--shard`, `--out`,
+//! `--resume`, `--jobs`, and `marvin eval merge` of the records).
+
+use super::batch::{Batch, Runner, print_report};
+use super::eval::{eval_cameras, matcher_models, run_pipeline};
+use anyhow::Context;
+use marvin::eval::batch::Record;
+use marvin::eval::{LocateStats, locate_stats, quantile, symmetries};
+use nalgebra::Isometry3;
+use serde::{Deserialize, Serialize};
+use serde_json::{Value, json};
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+/// Where vision's cameras and the table's place come from, and Canny's settings.
+pub struct Sources {
+    pub cameras: Option<PathBuf>,
+    pub hand_eye: Option<PathBuf>,
+    pub canny: vision::CannyParams,
+}
+
+/// What `eval locate` keeps of one scene.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LocateScene {
+    pub stats: LocateStats,
+    pub unsettled: bool,
+    /// Wall time of the matcher: it differs from machine to machine and run to run.
+    pub match_ms: f64,
+}
+
+/// `marvin eval locate`.
+pub fn eval(b: &Batch, sources: &Sources) -> anyhow::Result<()> {
+    let scn = sim::Scenario::load(&b.world)?;
+    let runner = Runner::open(b, "locate")?;
+    let imaging = sim::imaging::Imaging::new(&scn.world);
+    let cams = eval_cameras(&imaging, sources.cameras.as_deref())?;
+    let calib = cams.vision.clone();
+    let table = super::table::cam_from_table(&b.world, &scn, &calib, sources.hand_eye.as_deref(), b.seed, b.json)?;
+    let models = matcher_models(&scn.library, None);
+    let symmetry: BTreeMap<String, Vec<Isometry3<f64>>> =
+        scn.library.models.values().map(|m| (m.name.clone(), symmetries(m))).collect();
+    let params = marvin::engine::perception::part_params(table.cam_from_table.as_ref());
+    let shared = json!({ "world_name": scn.world.name, "realism": imaging.preset, "table": table.source });
+    let scene = |s: u64| {
+        let p = run_pipeline(&scn, &imaging, s, &sources.canny, &cams);
+        let lines: Vec<vision::matcher::Seg> =
+            p.front_end.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
+        let clock = std::time::Instant::now();
+        let evidence = vision::matcher::verify::ImageEvidence::of_pair(&calib, &p.front_end);
+        let located = vision::matcher::locate_all(&models, &lines, &params, Some(&evidence));
+        let match_ms = clock.elapsed().as_secs_f64() * 1e3;
+        let stats = locate_stats(&located, &p.scene, &scn.library, &p.cams, &p.left.depth, &symmetry);
+        let line = format!(
+            "located {}/{} visible objects, {} false of {} reports",
+            stats.located, stats.eligible, stats.false_positives, stats.reports
+        );
+        Ok((serde_json::to_value(LocateScene { stats, unsettled: !p.settled, match_ms })?, line))
+    };
+    let records = runner.run(&shared, &scene)?;
+    print_report(summarise(&records)?, b.shard, b.json)
+}
+
+/// The summary of `eval locate` records (sorted by seed), as one process over them prints it.
+/// Everything but `match_ms_median` (a wall time) is a function of the records' scenes alone.
+pub fn summarise(records: &[Record]) -> anyhow::Result<Value> {
+    let first = records.first().context("no scenes to summarise")?;
+    let mut total = LocateStats::default();
+    let (mut match_ms, mut unsettled, mut false_reports, mut missed) = (Vec::new(), 0, Vec::new(), Vec::new());
+    for r in records {
+        let scene: LocateScene = serde_json::from_value(r.scene.clone())
+            .with_context(|| format!("seed {}: not an `eval locate` scene", r.seed))?;
+        false_reports.extend(scene.stats.false_reports.iter().map(|f| json!({ "seed": r.seed, "report": f })));
+        missed.extend(scene.stats.missed.iter().map(|m| json!({ "seed": r.seed, "object": m })));
+        match_ms.push(scene.match_ms);
+        unsettled += usize::from(scene.unsettled);
+        total.add(&scene.stats);
+    }
+    let located_by_model: BTreeMap<String, f64> =
+        total.by_model.iter().map(|(m, [e, l])| (m.clone(), *l as f64 / (*e).max(1) as f64)).collect();
+    let mut report = json!({
+        "world": first.shared["world_name"],
+        "realism": first.shared["realism"],
+        "seeds": first.range,
+        "scenes": records.len(),
+        "table": first.shared["table"],
+        "located_fraction": total.located as f64 / total.eligible.max(1) as f64,
+        "pos_err_mm_median": quantile(&total.pos_err_mm, 0.5),
+        "pos_err_mm_p90": quantile(&total.pos_err_mm, 0.9),
+        "rot_err_deg_median": quantile(&total.rot_err_deg, 0.5),
+        "false_positive_fraction": total.false_positives as f64 / total.reports.max(1) as f64,
+        "match_ms_median": quantile(&match_ms, 0.5),
+        "unsettled_scenes": unsettled,
+        "located_by_model": located_by_model,
+        "false_reports": false_reports,
+        "missed": missed,
+        "version": first.version,
+    });
+    marvin::eval::add_intervals(
+        &mut report,
+        &[
+            ("located_fraction", total.located, total.eligible),
+            ("false_positive_fraction", total.false_positives, total.reports),
+        ],
+    );
+    Ok(report)
+}
