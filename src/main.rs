@@ -350,7 +350,7 @@ fn main() -> std::process::ExitCode {
             ..
         } => locate_pair::run(locate_pair::PairArgs { left, right, cameras, models, json }),
         Command::Locate { world, seed, models, json, out, rerun, no_deblur, cameras, hand_eye, .. } => {
-            let canny = eval::canny_params(!no_deblur);
+            let canny = cli::scene::canny_params(!no_deblur);
             anyhow::Context::context(world, "a world file, or --left, --right and --cameras").and_then(|world| {
                 locate::run(locate::LocateArgs { world, seed, models, json, out, rerun, cameras, hand_eye }, &canny)
             })

@@ -269,7 +269,7 @@ fn vision(args: &BenchArgs) -> anyhow::Result<()> {
     // The matcher: every library model but the flag on the front end's 3D lines, with the
     // left image's edgels for verification; and the whole cycle, stereo pair in, located
     // objects out.
-    let models = super::eval::matcher_models(&s.scn.library, None);
+    let models = super::scene::matcher_models(&s.scn.library, None);
     let mp = marvin::engine::perception::part_params(Some(&s.calib.left.cam_from_world()));
     let fe = vision::front_end::slices::run_sliced(&left, &right, &s.calib, &params, 8);
     let lines: Vec<vision::matcher::Seg> =

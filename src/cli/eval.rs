@@ -3,10 +3,11 @@
 //! Wilson interval ([`marvin::eval::wilson95`]).
 
 use super::output::emit;
+use super::scene::{canny_params, eval_cameras};
 use clap::Subcommand;
 use marvin::eval::truth::TruthScene;
 use marvin::eval::{ArmMask, DisparityStats, LineStats, disparity_stats, edgel_fates, line_stats};
-use sim::{Scenario, Scene};
+use sim::Scenario;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
@@ -349,62 +350,6 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
 fn fractions_of(counts: &BTreeMap<String, usize>) -> BTreeMap<String, f64> {
     let total = counts.values().sum::<usize>().max(1) as f64;
     counts.iter().map(|(k, &n)| (k.clone(), n as f64 / total)).collect()
-}
-
-/// A seeded scene taken through rendering and the (sliced) front end.
-pub struct Pipeline {
-    pub scene: Scene,
-    pub left: sim::render::Frame,
-    pub right: sim::render::Frame,
-    pub front_end: vision::front_end::FrontEnd,
-    /// Whether the scene came to rest (a warning was printed if not).
-    pub settled: bool,
-    /// The calibration vision was given, and the true cameras.
-    pub cams: marvin::eval::truth::EvalCameras,
-}
-
-/// The front end's Canny parameters, deblurred or not.
-pub fn canny_params(deblur: bool) -> vision::CannyParams {
-    vision::CannyParams { deblur, ..vision::CannyParams::default() }
-}
-
-/// The cameras vision is given, and the true ones: the world file's, or `cameras`' measured ones.
-pub fn eval_cameras(
-    imaging: &sim::imaging::Imaging,
-    cameras: Option<&std::path::Path>,
-) -> anyhow::Result<marvin::eval::truth::EvalCameras> {
-    Ok(match cameras {
-        Some(path) => marvin::eval::truth::EvalCameras::measured(imaging, &super::calibrate::load_cameras(path)?),
-        None => marvin::eval::truth::EvalCameras::of(imaging),
-    })
-}
-
-/// Settles the scene of `seed`, renders it as `imaging` has the cell, and runs the sliced
-/// front end on it with the cameras `cams` gives vision.
-pub fn run_pipeline(
-    scn: &Scenario,
-    imaging: &sim::imaging::Imaging,
-    seed: u64,
-    canny: &vision::CannyParams,
-    cams: &marvin::eval::truth::EvalCameras,
-) -> Pipeline {
-    let cams = cams.clone();
-    let calib = &cams.vision;
-    let (scene, settled) = super::output::settle(scn, seed);
-    let (l, r) = imaging.render_stereo(&scene.render_scene(&scn.library, imaging), seed);
-    let left = vision::GreyImage::new(l.width, l.height, l.image.clone()).expect("a rendered frame is whole");
-    let right = vision::GreyImage::new(r.width, r.height, r.image.clone()).expect("a rendered frame is whole");
-    let front_end = vision::front_end::slices::run_sliced(&left, &right, calib, canny, 8);
-    Pipeline { scene, left: l, right: r, front_end, settled, cams }
-}
-
-/// The library's models as the matcher sees them (the calibration tools are not sought).
-pub fn matcher_models(library: &mesh::Library, only: Option<&[String]>) -> Vec<vision::matcher::MatcherModel> {
-    library
-        .parts()
-        .filter(|m| only.is_none_or(|o| o.contains(&m.name)))
-        .map(vision::matcher::MatcherModel::from_model)
-        .collect()
 }
 
 /// `marvin eval merge`: the records of every shard, checked to be one whole batch, summarised.

@@ -3,7 +3,7 @@
 //! `--resume`, `--jobs`, and `marvin eval merge` of the records).
 
 use super::batch::{Batch, Runner, print_report};
-use super::eval::{eval_cameras, matcher_models, run_pipeline};
+use super::scene::{eval_cameras, matcher_models, run_pipeline};
 use anyhow::Context;
 use marvin::eval::batch::Record;
 use marvin::eval::{LocateStats, locate_stats, quantile, symmetries};

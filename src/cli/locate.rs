@@ -1,8 +1,8 @@
 //! `marvin locate`: render a scene, run the front end and the matcher, and say how each report
 //! compares with the truth.
 
-use super::eval::{matcher_models, run_pipeline};
 use super::output::emit;
+use super::scene::{matcher_models, run_pipeline};
 use anyhow::{Context, bail};
 use image::{Rgb, RgbImage};
 use marvin::engine::perception::part_params;
@@ -45,7 +45,7 @@ pub fn run(args: LocateArgs, canny: &vision::CannyParams) -> anyhow::Result<()> 
     }
     let seed = seed.unwrap_or(scn.world.seed);
     let imaging = sim::imaging::Imaging::new(&scn.world);
-    let p = run_pipeline(&scn, &imaging, seed, canny, &super::eval::eval_cameras(&imaging, cameras.as_deref())?);
+    let p = run_pipeline(&scn, &imaging, seed, canny, &super::scene::eval_cameras(&imaging, cameras.as_deref())?);
     let calib = p.cams.vision.clone();
     let lines: Vec<Seg> = p.front_end.lines3d.iter().map(|l| Seg::new(l.start(), l.end())).collect();
     let sought = matcher_models(&scn.library, models.as_deref());
@@ -181,7 +181,7 @@ pub fn run(args: LocateArgs, canny: &vision::CannyParams) -> anyhow::Result<()> 
 fn record(
     path: &Path,
     scn: &Scenario,
-    p: &super::eval::Pipeline,
+    p: &super::scene::Pipeline,
     calib: &mesh::StereoCalibration,
     located: &[vision::matcher::Located],
 ) -> anyhow::Result<()> {

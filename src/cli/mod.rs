@@ -6,6 +6,7 @@
 //! - [`eval_run_batch`]: `eval run` over a seed range: shards, records per scene, merging.
 //! - [`eval_locate`]: the matcher over seeded scenes against the truth, batched the same way.
 //! - [`batch`]: the scene loop batched verbs share (`--shard`, `--out`, `--resume`, `--jobs`).
+//! - [`scene`]: a seeded scene rendered and through the front end, for `locate` and `eval`.
 //! - [`render`]: settle a world and render both cameras.
 //! - [`edges`]: Canny and edge strings of any image.
 //! - [`stereo`]: the front end on any stereo pair.
@@ -40,6 +41,7 @@ pub mod output;
 pub mod pick;
 pub mod render;
 pub mod run;
+pub mod scene;
 pub mod serve;
 pub mod session;
 pub mod stereo;
