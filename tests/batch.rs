@@ -147,3 +147,30 @@ fn eval_locate_shards_merged_and_jobs_give_one_processs_figures() {
     assert_eq!(without_time(ok(o)), whole, "two shards merged");
     assert_eq!(without_time(ok(locate(&["--jobs", "2"]).output().unwrap())), whole, "--jobs 2");
 }
+
+/// `eval pick` batched the same way: two shards merged and two trials at a time give one
+/// process's figures (tuning seeds 1-2).
+#[test]
+fn eval_pick_shards_merged_and_jobs_give_one_processs_figures() {
+    let dir = scratch("batch_pick");
+    let p = |name: &str| dir.join(name).display().to_string();
+    let pick = |extra: &[&str]| {
+        let mut c = marvin();
+        c.args(["eval", "pick", "worlds/ideal/widgets.toml", "--trials", "2", "--seed", "1", "--json"]).args(extra);
+        c
+    };
+    let without_time = |mut v: Value| {
+        for k in ["wall_s", "shard"] {
+            v.as_object_mut().unwrap().remove(k);
+        }
+        v
+    };
+    let whole = without_time(ok(pick(&[]).output().unwrap()));
+    assert_eq!(whole["trials"], 2);
+    for k in 1..=2 {
+        ok(pick(&["--shard", &format!("{k}/2"), "--out", &p(&format!("s{k}.jsonl"))]).output().unwrap());
+    }
+    let o = marvin().args(["eval", "merge", "--json", &p("s1.jsonl"), &p("s2.jsonl")]).output().unwrap();
+    assert_eq!(without_time(ok(o)), whole, "two shards merged");
+    assert_eq!(without_time(ok(pick(&["--jobs", "2"]).output().unwrap())), whole, "--jobs 2");
+}

@@ -143,6 +143,8 @@ pub enum EvalTarget {
         seed: u64,
         #[arg(long)]
         json: bool,
+        #[command(flatten)]
+        batch: BatchArgs,
     },
     /// The model matcher on the front end's 3D lines: render, locate, compare with ground truth.
     ///
@@ -241,7 +243,9 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
             let sources = super::eval_locate::Sources { cameras, hand_eye, canny: canny_params(!no_deblur) };
             return super::eval_locate::eval(&batch.batch(world, scenes, seed, json)?, &sources);
         }
-        EvalTarget::Pick { world, trials, seed, json } => return super::eval_pick::run(&world, trials, seed, json),
+        EvalTarget::Pick { world, trials, seed, json, batch } => {
+            return super::eval_pick::run(&batch.batch(world, trials, seed, json)?);
+        }
         EvalTarget::Run { world, scenes, seed, json, batch, cameras, hand_eye } => {
             let shared = super::eval_run_batch::Shared { cameras, hand_eye };
             return super::eval_run_batch::eval(&batch.batch(world, scenes, seed, json)?, &shared);
@@ -363,8 +367,9 @@ fn merge(files: &[PathBuf], json: bool) -> anyhow::Result<()> {
     match records[0].verb.as_str() {
         "run" => super::batch::print_report(super::eval_run_batch::summarise(&records)?, all, json),
         "locate" => super::batch::print_report(super::eval_locate::summarise(&records)?, all, json),
+        "pick" => super::batch::print_report(super::eval_pick::summarise(&records)?, all, json),
         other => {
-            anyhow::bail!("records of `eval {other}`: only `eval run` and `eval locate` records can be merged so far")
+            anyhow::bail!("records of `eval {other}`: only `run`, `locate` and `pick` records can be merged so far")
         }
     }
 }

@@ -1,62 +1,105 @@
 //! `marvin eval pick`: seeded physical picks, in clutter and one object at a time, every attempt
-//! counted.
+//! counted; batched like `eval run` (`--shard`, `--out`, `--resume`, `--jobs`, and `marvin eval
+//! merge` of the records): trial k is a clutter scene of seed + k cleared object by object and
+//! each model alone dropped with seed + k.
 
+use super::batch::{Batch, Runner, print_report};
 use super::output::{emit, settle};
+use anyhow::Context;
+use marvin::eval::batch::Record;
 use marvin::server::pick::{ObjectPicks, PickOutcome, clear_scene, load, pickable_models, single_object_scenario};
 use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
 use serde_json::json;
 use std::collections::BTreeMap;
-use std::path::Path;
 use std::time::Instant;
+
+/// What `eval pick` keeps of one trial.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PickTrial {
+    /// The clutter scene's objects, each with every pick tried at it.
+    pub clutter: Vec<ObjectPicks>,
+    pub clutter_settled: bool,
+    /// Each model alone: its pick, and whether its scene settled.
+    pub single: Vec<(PickOutcome, bool)>,
+    /// Wall time of the trial: it differs from machine to machine and run to run.
+    pub wall_s: f64,
+}
+
+/// `marvin eval pick`.
+pub fn run(b: &Batch) -> anyhow::Result<()> {
+    let (scn, work) = load(&b.world)?;
+    let runner = Runner::open(b, "pick")?;
+    let models = pickable_models(&scn);
+    let trial = |s: u64| {
+        let started = Instant::now();
+        let clutter_trial = || -> anyhow::Result<(Vec<ObjectPicks>, bool)> {
+            let (scene, settled) = settle(&scn, s);
+            Ok((clear_scene(&scn, &work, &scene)?, settled))
+        };
+        let singles = || -> anyhow::Result<Vec<(PickOutcome, bool)>> {
+            models
+                .par_iter()
+                .map(|model| {
+                    let one = single_object_scenario(&scn, model);
+                    let (scene, settled) = settle(&one, s);
+                    Ok((marvin::server::pick::PickCell::new(&one, &work, &scene)?.pick(1, s)?, settled))
+                })
+                .collect()
+        };
+        let (clutter, single) = rayon::join(clutter_trial, singles);
+        let ((clutter, clutter_settled), single) = (clutter?, single?);
+        let cleared = clutter.iter().filter(|o| o.cleared()).count();
+        let attempts: usize = clutter.iter().map(|o| o.attempts.len()).sum();
+        let placed = single.iter().filter(|(o, _)| o.placed).count();
+        let line = format!(
+            "{cleared} of {} cleared in {attempts} picks; {placed} of {} single picks placed",
+            clutter.len(),
+            single.len()
+        );
+        let wall_s = started.elapsed().as_secs_f64();
+        Ok((serde_json::to_value(PickTrial { clutter, clutter_settled, single, wall_s })?, line))
+    };
+    let shared = json!({ "world_name": scn.world.name, "models": models });
+    let records = runner.run(&shared, &trial)?;
+    let report = summarise(&records)?;
+    if b.json {
+        return print_report(report, b.shard, true);
+    }
+    print_summary(&report)
+}
+
+/// The summary of `eval pick` records (sorted by seed), as one process over them prints it.
+/// Everything but `wall_s` is a function of the records' trials alone.
+pub fn summarise(records: &[Record]) -> anyhow::Result<serde_json::Value> {
+    let first = records.first().context("no trials to summarise")?;
+    let trials: Vec<PickTrial> = records
+        .iter()
+        .map(|r| {
+            serde_json::from_value(r.scene.clone())
+                .with_context(|| format!("seed {}: not an `eval pick` trial", r.seed))
+        })
+        .collect::<anyhow::Result<_>>()?;
+    let models: Vec<String> = serde_json::from_value(first.shared["models"].clone()).context("the records' models")?;
+    let objects: Vec<&ObjectPicks> = trials.iter().flat_map(|t| &t.clutter).collect();
+    let single: Vec<Trial<PickOutcome>> = trials
+        .iter()
+        .flat_map(|t| t.single.iter().map(|(o, settled)| Trial { outcome: o.clone(), settled: *settled }))
+        .collect();
+    let wall_s = trials.iter().map(|t| t.wall_s).sum();
+    let unsettled = trials.iter().filter(|t| !t.clutter_settled).count();
+    let mut report = report(&objects, &single, &models, wall_s, unsettled);
+    report["world"] = first.shared["world_name"].clone();
+    report["seeds"] = json!(first.range);
+    report["trials"] = json!(records.len());
+    report["version"] = json!(first.version);
+    Ok(report)
+}
 
 /// A scene's outcome and whether it settled.
 struct Trial<T> {
     outcome: T,
     settled: bool,
-}
-
-pub fn run(world: &Path, trials: u64, seed: u64, json: bool) -> anyhow::Result<()> {
-    let (scn, work) = load(world)?;
-    let started = Instant::now();
-    let progress = super::output::Progress::new(trials * (1 + pickable_models(&scn).len() as u64), json);
-    let clutter: Vec<Trial<Vec<ObjectPicks>>> = (0..trials)
-        .into_par_iter()
-        .map(|k| {
-            let (scene, settled) = settle(&scn, seed + k);
-            let objects = clear_scene(&scn, &work, &scene)?;
-            let cleared = objects.iter().filter(|o| o.cleared()).count();
-            let attempts: usize = objects.iter().map(|o| o.attempts.len()).sum();
-            progress.step(format!(
-                "clutter seed {}: {cleared} of {} cleared in {attempts} picks",
-                seed + k,
-                objects.len()
-            ));
-            Ok(Trial { outcome: objects, settled })
-        })
-        .collect::<anyhow::Result<_>>()?;
-    let models = pickable_models(&scn);
-    let jobs: Vec<(String, u64)> =
-        models.iter().flat_map(|m| (0..trials).map(move |k| (m.clone(), seed + k))).collect();
-    let single: Vec<Trial<PickOutcome>> = jobs
-        .par_iter()
-        .map(|(model, s)| {
-            let one = single_object_scenario(&scn, model);
-            let (scene, settled) = settle(&one, *s);
-            let out = marvin::server::pick::PickCell::new(&one, &work, &scene)?.pick(1, *s)?;
-            progress.step(format!("single {model} seed {s}: {} {}", out.result, out.detail.as_deref().unwrap_or("")));
-            Ok(Trial { outcome: out, settled })
-        })
-        .collect::<anyhow::Result<_>>()?;
-    progress.finish();
-    let wall_s = started.elapsed().as_secs_f64();
-    let objects: Vec<&ObjectPicks> = clutter.iter().flat_map(|t| &t.outcome).collect();
-    let mut report = report(&objects, &single, &models, wall_s, clutter.iter().filter(|t| !t.settled).count());
-    report["world"] = json!(scn.world.name);
-    report["seeds"] = json!([seed, seed + trials - 1]);
-    if json {
-        return emit(&serde_json::to_string_pretty(&report)?);
-    }
-    print_summary(&report)
 }
 
 /// Placed of these picks, as a fraction.

@@ -13,7 +13,7 @@ use rapier3d::prelude::RigidBodyHandle;
 use robot::pick::{Action, GraspCandidate, PickPlan, PickRequest, PlaceTarget, grasp_variants, plan_pick};
 use robot::planner::Obstacle;
 use robot::{Arm, Ik};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use sim::arm::SimArm;
 use sim::physics::{Cell, collision_shape};
 use sim::scene::{Scenario, Scene, static_boxes};
@@ -51,7 +51,7 @@ impl Workcell {
 }
 
 /// How one pick went.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PickOutcome {
     pub object: u32,
     pub model: String,
@@ -550,7 +550,7 @@ pub fn clear_cell(cell: &mut PickCell, seed: u64) -> Result<Vec<ObjectPicks>> {
 }
 
 /// Every pick tried at one object while clearing a scene, in order: the last says how it ended.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ObjectPicks {
     pub object: u32,
     pub attempts: Vec<PickOutcome>,
