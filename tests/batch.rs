@@ -119,58 +119,44 @@ fn shard_auto_without_a_scheduler_is_refused_naming_what_it_looked_for() {
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("K must be 1 to N"));
 }
 
-/// `eval locate` batched the same way: two shards merged and two scenes at a time give one
-/// process's figures (tuning seeds 1-4, the table placed by the shared hand-eye file).
-#[test]
-fn eval_locate_shards_merged_and_jobs_give_one_processs_figures() {
-    let dir = scratch("batch_locate");
-    let p = |name: &str| dir.join(name).display().to_string();
-    let locate = |extra: &[&str]| {
+/// Two shards of `args` merged, and `args` two scenes at a time, give the figures of `args` in
+/// one process, but for the wall-time keys `timing`; `count` is the summary's scene count key.
+fn two_shards_and_jobs_agree(name: &str, args: &[&str], timing: &str, count: (&str, u64)) {
+    let dir = scratch(name);
+    let p = |file: &str| dir.join(file).display().to_string();
+    let verb = |extra: &[&str]| {
         let mut c = marvin();
-        c.args(["eval", "locate", "worlds/ideal/widgets.toml", "--scenes", "4", "--seed", "1", "--json"])
-            .args(["--hand-eye", &format!("{FIXTURES}/hand_eye.json")])
-            .args(extra);
+        c.args(args).arg("--json").args(extra);
         c
     };
     let without_time = |mut v: Value| {
-        for k in ["match_ms_median", "shard"] {
+        for k in [timing, "shard"] {
             v.as_object_mut().unwrap().remove(k);
         }
         v
     };
-    let whole = without_time(ok(locate(&[]).output().unwrap()));
-    assert_eq!(whole["scenes"], 4);
+    let whole = without_time(ok(verb(&[]).output().unwrap()));
+    assert_eq!(whole[count.0], count.1);
     for k in 1..=2 {
-        ok(locate(&["--shard", &format!("{k}/2"), "--out", &p(&format!("s{k}.jsonl"))]).output().unwrap());
+        ok(verb(&["--shard", &format!("{k}/2"), "--out", &p(&format!("s{k}.jsonl"))]).output().unwrap());
     }
     let o = marvin().args(["eval", "merge", "--json", &p("s1.jsonl"), &p("s2.jsonl")]).output().unwrap();
     assert_eq!(without_time(ok(o)), whole, "two shards merged");
-    assert_eq!(without_time(ok(locate(&["--jobs", "2"]).output().unwrap())), whole, "--jobs 2");
+    assert_eq!(without_time(ok(verb(&["--jobs", "2"]).output().unwrap())), whole, "--jobs 2");
 }
 
-/// `eval pick` batched the same way: two shards merged and two trials at a time give one
-/// process's figures (tuning seeds 1-2).
+/// `eval locate` batched the same way (tuning seeds 1-4, the table placed by the shared
+/// hand-eye file).
+#[test]
+fn eval_locate_shards_merged_and_jobs_give_one_processs_figures() {
+    let hand_eye = format!("{FIXTURES}/hand_eye.json");
+    let args = ["eval", "locate", "worlds/ideal/widgets.toml", "--scenes", "4", "--seed", "1", "--hand-eye", &hand_eye];
+    two_shards_and_jobs_agree("batch_locate", &args, "match_ms_median", ("scenes", 4));
+}
+
+/// `eval pick` batched the same way (tuning seeds 1-2).
 #[test]
 fn eval_pick_shards_merged_and_jobs_give_one_processs_figures() {
-    let dir = scratch("batch_pick");
-    let p = |name: &str| dir.join(name).display().to_string();
-    let pick = |extra: &[&str]| {
-        let mut c = marvin();
-        c.args(["eval", "pick", "worlds/ideal/widgets.toml", "--trials", "2", "--seed", "1", "--json"]).args(extra);
-        c
-    };
-    let without_time = |mut v: Value| {
-        for k in ["wall_s", "shard"] {
-            v.as_object_mut().unwrap().remove(k);
-        }
-        v
-    };
-    let whole = without_time(ok(pick(&[]).output().unwrap()));
-    assert_eq!(whole["trials"], 2);
-    for k in 1..=2 {
-        ok(pick(&["--shard", &format!("{k}/2"), "--out", &p(&format!("s{k}.jsonl"))]).output().unwrap());
-    }
-    let o = marvin().args(["eval", "merge", "--json", &p("s1.jsonl"), &p("s2.jsonl")]).output().unwrap();
-    assert_eq!(without_time(ok(o)), whole, "two shards merged");
-    assert_eq!(without_time(ok(pick(&["--jobs", "2"]).output().unwrap())), whole, "--jobs 2");
+    let args = ["eval", "pick", "worlds/ideal/widgets.toml", "--trials", "2", "--seed", "1"];
+    two_shards_and_jobs_agree("batch_pick", &args, "wall_s", ("trials", 2));
 }
