@@ -4,47 +4,12 @@
 //! (`tests/fixtures/ideal_seed3/`: `marvin calibrate cameras worlds/ideal/widgets.toml --seed 3`,
 //! then `marvin calibrate ... --cameras` through them), as a cluster's shards share them.
 
+mod common;
+
+use common::{FIXTURES, eval_run, figures, marvin, ok, scratch, without};
 use serde_json::Value;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::Stdio;
 use std::time::{Duration, Instant};
-
-const FIXTURES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/fixtures/ideal_seed3");
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn marvin() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_marvin"));
-    c.current_dir(env!("CARGO_MANIFEST_DIR"));
-    c
-}
-
-/// `eval run` of seeds 1-4 with the shared files, and `extra`.
-fn eval_run(extra: &[&str]) -> Command {
-    let mut c = marvin();
-    c.args(["eval", "run", "worlds/ideal/widgets.toml", "--scenes", "4", "--seed", "1", "--json"])
-        .args(["--cameras", &format!("{FIXTURES}/cameras.json"), "--hand-eye", &format!("{FIXTURES}/hand_eye.json")])
-        .args(extra);
-    c
-}
-
-fn ok(o: Output) -> Value {
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    serde_json::from_slice(&o.stdout).unwrap()
-}
-
-/// The summary without its wall times (which differ between any two runs) and its shard label.
-fn figures(mut v: Value) -> Value {
-    for k in ["cycle_s_mean", "vision_cycle_ms_median", "shard"] {
-        v.as_object_mut().unwrap().remove(k);
-    }
-    v
-}
 
 #[test]
 fn shards_merged_jobs_and_a_resumed_batch_give_one_processs_figures() {
@@ -129,12 +94,7 @@ fn two_shards_and_jobs_agree(name: &str, args: &[&str], timing: &str, count: (&s
         c.args(args).arg("--json").args(extra);
         c
     };
-    let without_time = |mut v: Value| {
-        for k in [timing, "shard"] {
-            v.as_object_mut().unwrap().remove(k);
-        }
-        v
-    };
+    let without_time = |v: Value| without(v, &[timing]);
     let whole = without_time(ok(verb(&[]).output().unwrap()));
     assert_eq!(whole[count.0], count.1);
     for k in 1..=2 {
@@ -159,4 +119,30 @@ fn eval_locate_shards_merged_and_jobs_give_one_processs_figures() {
 fn eval_pick_shards_merged_and_jobs_give_one_processs_figures() {
     let args = ["eval", "pick", "worlds/ideal/widgets.toml", "--trials", "2", "--seed", "1"];
     two_shards_and_jobs_agree("batch_pick", &args, "wall_s", ("trials", 2));
+}
+
+/// `eval vision` batched the same way (tuning seeds 1-3, realistic widgets, the world file's
+/// cameras).
+#[test]
+fn eval_vision_shards_merged_and_jobs_give_one_processs_figures() {
+    let args = ["eval", "vision", "worlds/widgets.toml", "--scenes", "3", "--seed", "1"];
+    two_shards_and_jobs_agree("batch_vision", &args, "timings_ms", ("scenes", 3));
+}
+
+/// `eval calibrate` (hand-eye, through the shared cameras) batched the same way: a record per
+/// trial (tuning seeds 1-2, 8 poses each).
+#[test]
+fn eval_calibrate_shards_merged_and_jobs_give_one_processs_figures() {
+    let cameras = format!("{FIXTURES}/cameras.json");
+    let args = ["eval", "calibrate", "worlds/ideal/widgets.toml", "--trials", "2", "--seed", "1", "--poses", "8"];
+    let args: Vec<&str> = args.into_iter().chain(["--cameras", &cameras]).collect();
+    two_shards_and_jobs_agree("batch_calibrate", &args, "shard", ("trials", 2));
+}
+
+/// `eval calibrate cameras` batched the same way (tuning seeds 1-2, 8 board poses each).
+#[test]
+fn eval_calibrate_cameras_shards_merged_and_jobs_give_one_processs_figures() {
+    let args =
+        ["eval", "calibrate", "cameras", "worlds/ideal/widgets.toml", "--trials", "2", "--seed", "1", "--poses", "8"];
+    two_shards_and_jobs_agree("batch_calibrate_cameras", &args, "shard", ("trials", 2));
 }

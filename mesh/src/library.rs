@@ -4,15 +4,32 @@ use crate::model::{Model, ModelSpec};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// Where the project's own model files live.
+/// The environment variable that names the project's model folder where the binary runs
+/// away from the checkout it was built in (a container, a cluster node).
+pub const MODELS_ENV: &str = "MARVIN_MODELS";
+
+/// Where the project's own model files live: `$MARVIN_MODELS` if it is set, else `mesh/models`
+/// of the checkout the binary was built from.
 pub fn default_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("models")
+    match std::env::var_os(MODELS_ENV) {
+        Some(dir) if !dir.is_empty() => PathBuf::from(dir),
+        _ => Path::new(env!("CARGO_MANIFEST_DIR")).join("models"),
+    }
 }
 
 /// The models that are tools an operator hands to the arm for calibration, not parts: the
 /// hand-eye flag and the camera calibration board. Scenes never hold them and the part search
 /// never seeks them.
 pub const TOOLS: [&str; 2] = ["board", "flag"];
+
+/// Why a model folder could not be read, saying how to name the project's own elsewhere.
+fn not_there(dir: &Path, e: std::io::Error) -> String {
+    if dir == default_dir() && e.kind() == std::io::ErrorKind::NotFound {
+        format!("{e}: the project's model folder is not here; set {MODELS_ENV} to it (mesh/models in the repository)")
+    } else {
+        e.to_string()
+    }
+}
 
 /// Built models by name.
 #[derive(Debug, Clone, Default)]
@@ -32,7 +49,7 @@ impl Library {
     /// Loads and builds every model file in `dir`.
     pub fn load_dir(dir: &Path) -> Result<Library, LibraryError> {
         let err = |path: &Path, message: String| LibraryError { path: path.display().to_string(), message };
-        let entries = std::fs::read_dir(dir).map_err(|e| err(dir, e.to_string()))?;
+        let entries = std::fs::read_dir(dir).map_err(|e| err(dir, not_there(dir, e)))?;
         let mut files: Vec<PathBuf> = entries
             .filter_map(|e| e.ok().map(|e| e.path()))
             .filter(|p| p.extension().is_some_and(|x| x == "toml"))
@@ -52,7 +69,7 @@ impl Library {
         Ok(lib)
     }
 
-    /// The project's own library, `mesh/models`.
+    /// The project's own library ([`default_dir`]).
     pub fn load_default() -> Result<Library, LibraryError> {
         Self::load_dir(&default_dir())
     }

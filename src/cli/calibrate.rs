@@ -1,6 +1,6 @@
 //! `marvin calibrate`: hand-eye calibration through the robot server (in-process on loopback,
-//! or `--connect`ed), written to a file the server takes; and `marvin eval calibrate`, seeded
-//! calibrations against the simulation's truth.
+//! or `--connect`ed), written to a file the server takes (`marvin eval calibrate`, seeded
+//! calibrations against the simulation's truth, is in [`super::eval_calibrate`]).
 
 use super::output::emit;
 use anyhow::Context;
@@ -266,76 +266,4 @@ fn record(
     }
     r.cell_layout(scn)?;
     r.finish()
-}
-
-/// `marvin eval calibrate`: seeded hand-eye calibrations, each on its own scene and poses,
-/// through `cameras` (a calibration file) or cameras measured once here.
-pub fn eval(
-    world: &Path,
-    (trials, seed, poses): (u64, u64, usize),
-    cameras: Option<&Path>,
-    json: bool,
-) -> anyhow::Result<()> {
-    let scn = sim::Scenario::load(world)?;
-    let (mut t_err, mut r_err, mut creep, mut turn) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-    let (mut used, mut total, mut failed, mut unsettled) = (0usize, 0usize, Vec::new(), 0usize);
-    // The cameras are measured once, on the first seed's scene, and seen through in every trial:
-    // they stand where the world file puts them in every scene.
-    let cameras = match cameras {
-        Some(path) => load_cameras(path)?,
-        None => {
-            let cell = Cell::start(world, seed, None)?;
-            let (mut client, hello) = cell.connect_greeted()?;
-            let (cameras, _) = super::cameras::cameras(&mut client, &hello, &scn.library, None, seed, true, false)?;
-            client.bye()?;
-            cell.stop()?;
-            cameras
-        }
-    };
-    let progress = super::output::Progress::new(trials, json);
-    for k in 0..trials {
-        let s = seed + k;
-        let config = CalibrateConfig { poses, seed: s, cameras: Some(cameras.clone()), ..CalibrateConfig::default() };
-        let cell = Cell::start(world, s, None)?;
-        let outcome = run_once(&cell, &scn.library, &config, true, &mut |_| {});
-        cell.stop()?;
-        match outcome {
-            Ok((c, truth, _)) => {
-                let (mm, deg) = error_of(&c, &truth).context("a local server gives the truth")?;
-                t_err.push(mm);
-                r_err.push(deg);
-                creep.extend(truth.flag_creep_mm());
-                turn.extend(truth.flag_turn_deg());
-                unsettled += usize::from(truth.unsettled.is_some());
-                used += c.solution.used.iter().filter(|u| **u).count();
-                total += c.poses.len();
-                let used = c.solution.used.iter().filter(|u| **u).count();
-                progress.step(format!("seed {s}: {mm:.3} mm, {deg:.4} deg ({used} of {} poses used)", c.poses.len()));
-            }
-            Err(e) => {
-                progress.step(format!("seed {s}: failed: {e:#}"));
-                failed.push(json!({ "seed": s, "error": format!("{e:#}") }));
-            }
-        }
-    }
-    progress.finish();
-    let q = |v: &[f64], p: f64| marvin::eval::quantile(v, p);
-    let mut report = json!({
-        "world": scn.world.name,
-        "seeds": [seed, seed + trials - 1],
-        "trials": trials,
-        "translation_err_mm_median": q(&t_err, 0.5),
-        "translation_err_mm_p90": q(&t_err, 0.9),
-        "rotation_err_deg_median": q(&r_err, 0.5),
-        "rotation_err_deg_p90": q(&r_err, 0.9),
-        "sightings_used_fraction": used as f64 / total.max(1) as f64,
-        "flag_creep_mm_max": creep.iter().copied().fold(0.0, f64::max),
-        "flag_creep_mm_median": q(&creep, 0.5),
-        "flag_turn_deg_max": turn.iter().copied().fold(0.0, f64::max),
-        "flag_turn_deg_median": q(&turn, 0.5),
-        "failed": failed,
-        "unsettled_scenes": unsettled,
-    });
-    marvin::eval::add_intervals(&mut report, &[("sightings_used_fraction", used, total)]);
-    if json { emit(&report.to_string()) } else { emit(&serde_json::to_string_pretty(&report)?) }
 }

@@ -126,69 +126,6 @@ pub fn run_once(
     outcome
 }
 
-/// `marvin eval calibrate cameras`: seeded camera calibrations, each on its own scene and board
-/// poses, against the cameras as built: per error its median and 90th percentile over the
-/// trials (both cameras pooled for the intrinsics).
-pub fn eval(world: &Path, trials: u64, seed: u64, poses: usize, json: bool) -> anyhow::Result<()> {
-    let scn = sim::Scenario::load(world)?;
-    let truth = TrueRig::of(&scn.world);
-    let mut errors: Vec<Value> = Vec::new();
-    let (mut used, mut lost, mut failed) = (Vec::new(), 0usize, Vec::new());
-    let progress = super::output::Progress::new(trials, json);
-    for k in 0..trials {
-        let s = seed + k;
-        let config = CameraCalibConfig { poses, seed: s, ..CameraCalibConfig::default() };
-        let cell = Cell::start(world, s, None)?;
-        match run_once(cell, &scn.library, &config, false, &mut |_| {}) {
-            Ok(c) => {
-                let e = truth.errors(&c.solution, c.size);
-                let n = c.solution.views.iter().filter(|v| v.left_rms_px.is_some() || v.right_rms_px.is_some()).count();
-                used.push(n as f64);
-                lost += c.views.iter().filter(|v| v.note.contains("left the jaws")).count();
-                progress.step(format!(
-                    "seed {s}: {n} views, rms {:.3} px, baseline {:+.3} mm",
-                    c.solution.rms_px, e["baseline_mm"]
-                ));
-                errors.push(json!({ "seed": s, "rms_px": c.solution.rms_px, "error": e }));
-            }
-            Err(e) => {
-                progress.step(format!("seed {s}: failed: {e:#}"));
-                failed.push(json!({ "seed": s, "error": format!("{e:#}") }));
-            }
-        }
-    }
-    progress.finish();
-    let pooled = |keys: &[&str]| -> Vec<f64> {
-        errors
-            .iter()
-            .flat_map(|t| ["left", "right"].map(|c| &t["error"][c]))
-            .flat_map(|c| keys.iter().map(move |k| c[*k].as_f64().unwrap_or(f64::NAN).abs()))
-            .collect()
-    };
-    let rig =
-        |key: &str| -> Vec<f64> { errors.iter().map(|t| t["error"][key].as_f64().unwrap_or(f64::NAN).abs()).collect() };
-    let rms: Vec<f64> = errors.iter().map(|t| t["rms_px"].as_f64().unwrap_or(f64::NAN)).collect();
-    let q = |v: &[f64], p: f64| marvin::eval::quantile(v, p);
-    let both = |v: Vec<f64>| json!({ "median": q(&v, 0.5), "p90": q(&v, 0.9) });
-    let report = json!({
-        "world": scn.world.name,
-        "seeds": [seed, seed + trials - 1],
-        "trials": trials,
-        "f_rel": both(pooled(&["fx_rel", "fy_rel"])),
-        "principal_point_px": both(pooled(&["cx_px", "cy_px"])),
-        "distortion_field_px_max": both(pooled(&["distortion_px_max"])),
-        "baseline_mm": both(rig("baseline_mm")),
-        "right_position_mm": both(rig("right_position_mm")),
-        "rotation_deg": both(rig("rotation_deg")),
-        "rms_px": both(rms),
-        "views_used_median": q(&used, 0.5),
-        "board_lost_on_the_way": lost,
-        "failed": failed,
-        "trials_detail": errors,
-    });
-    if json { emit(&report.to_string()) } else { emit(&serde_json::to_string_pretty(&report)?) }
-}
-
 fn report(args: &CamerasArgs, c: &CameraCalibration, file: &CamerasFile, errors: Option<Value>) -> anyhow::Result<()> {
     let s = &c.solution;
     let used = s.views.iter().filter(|v| v.left_rms_px.is_some() || v.right_rms_px.is_some()).count();

@@ -2,13 +2,8 @@
 //! fraction counted over trials (not `coverage`, a length) comes with `<key>_ci95`, its 95%
 //! Wilson interval ([`marvin::eval::wilson95`]).
 
-use super::output::emit;
-use super::scene::{canny_params, eval_cameras};
+use super::scene::canny_params;
 use clap::Subcommand;
-use marvin::eval::truth::TruthScene;
-use marvin::eval::{ArmMask, DisparityStats, LineStats, disparity_stats, edgel_fates, line_stats};
-use sim::Scenario;
-use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 #[derive(Subcommand)]
@@ -50,6 +45,8 @@ pub enum EvalTarget {
         /// part as known) instead of the world file's.
         #[arg(long)]
         cameras: Option<PathBuf>,
+        #[command(flatten)]
+        batch: BatchArgs,
     },
     /// Seeded end-to-end runs (`marvin run`), one calibration on the first seed's scene shared
     /// by all, each scene's outcome judged from the simulation's truth afterwards.
@@ -120,6 +117,8 @@ pub enum EvalTarget {
         cameras: Option<PathBuf>,
         #[arg(long)]
         json: bool,
+        #[command(flatten)]
+        batch: BatchArgs,
     },
     /// Physical picks with the simulated arm, planned from true poses, judged from the physics.
     ///
@@ -231,129 +230,38 @@ pub enum EvalCalibrateWhat {
         poses: u16,
         #[arg(long)]
         json: bool,
+        #[command(flatten)]
+        batch: BatchArgs,
     },
 }
 
 pub fn run(target: EvalTarget) -> anyhow::Result<()> {
-    let (world, scenes, seed, slices, deblur, json, cameras) = match target {
-        EvalTarget::Vision { world, scenes, seed, slices, no_deblur, json, cameras } => {
-            (world, scenes, seed, slices as usize, !no_deblur, json, cameras)
+    match target {
+        EvalTarget::Vision { world, scenes, seed, slices, no_deblur, json, cameras, batch } => {
+            let sources = super::eval_vision::Sources { cameras, deblur: !no_deblur, slices: slices as usize };
+            super::eval_vision::eval(&batch.batch(world, scenes, seed, json)?, &sources)
         }
         EvalTarget::Locate { world, scenes, seed, no_deblur, json, cameras, hand_eye, batch } => {
             let sources = super::eval_locate::Sources { cameras, hand_eye, canny: canny_params(!no_deblur) };
-            return super::eval_locate::eval(&batch.batch(world, scenes, seed, json)?, &sources);
+            super::eval_locate::eval(&batch.batch(world, scenes, seed, json)?, &sources)
         }
         EvalTarget::Pick { world, trials, seed, json, batch } => {
-            return super::eval_pick::run(&batch.batch(world, trials, seed, json)?);
+            super::eval_pick::run(&batch.batch(world, trials, seed, json)?)
         }
         EvalTarget::Run { world, scenes, seed, json, batch, cameras, hand_eye } => {
             let shared = super::eval_run_batch::Shared { cameras, hand_eye };
-            return super::eval_run_batch::eval(&batch.batch(world, scenes, seed, json)?, &shared);
+            super::eval_run_batch::eval(&batch.batch(world, scenes, seed, json)?, &shared)
         }
-        EvalTarget::Merge { files, json } => return merge(&files, json),
+        EvalTarget::Merge { files, json } => merge(&files, json),
         EvalTarget::Calibrate {
-            what: Some(EvalCalibrateWhat::Cameras { world, trials, seed, poses, json }), ..
-        } => {
-            return super::calibrate_cameras::eval(&world, trials, seed, poses as usize, json);
-        }
-        EvalTarget::Calibrate { what: None, world, trials, seed, poses, cameras, json } => {
+            what: Some(EvalCalibrateWhat::Cameras { world, trials, seed, poses, json, batch }),
+            ..
+        } => super::eval_calibrate::cameras(&batch.batch(world, trials, seed, json)?, poses as usize),
+        EvalTarget::Calibrate { what: None, world, trials, seed, poses, cameras, json, batch } => {
             let world = world.expect("clap requires the world without a subcommand");
-            return super::calibrate::eval(&world, (trials, seed, poses as usize), cameras.as_deref(), json);
-        }
-    };
-    let scn = Scenario::load(&world)?;
-    let imaging = sim::imaging::Imaging::new(&scn.world);
-    // What vision is given: the world file's cameras (the truth only in the ideal preset), or
-    // measured ones.
-    let cams = eval_cameras(&imaging, cameras.as_deref())?;
-    let calib = cams.vision.clone();
-    let (mut total, mut on_arm) = (DisparityStats::default(), DisparityStats::default());
-    let mut lines = LineStats::default();
-    let mut timings: BTreeMap<&'static str, Vec<f64>> = BTreeMap::new();
-    let mut unsettled = 0;
-    let mut fates: BTreeMap<String, usize> = BTreeMap::new();
-    for k in 0..scenes {
-        let s = seed + k;
-        let (scene, settled) = super::output::settle(&scn, s);
-        unsettled += usize::from(!settled);
-        let (l, r) = imaging.render_stereo(&scene.render_scene(&scn.library, &imaging), s);
-        let left = vision::GreyImage::new(l.width, l.height, l.image).expect("a rendered frame is whole");
-        let right = vision::GreyImage::new(r.width, r.height, r.image).expect("a rendered frame is whole");
-        let params = canny_params(deblur);
-        let fe = if slices > 1 {
-            vision::front_end::slices::run_sliced(&left, &right, &calib, &params, slices)
-        } else {
-            marvin::front_end::run(&left, &right, &calib, &params)
-        };
-        let truth = TruthScene::new(scene.world_meshes(&scn.library).map(|(_, m)| m));
-        let arm = ArmMask::from_ids(l.width, l.height, &l.ids);
-        let (stats, arm_stats) = disparity_stats(&fe, &truth, &cams, &arm);
-        let line = line_stats(&fe, &scene, &scn.library, &cams, &l.depth, &arm);
-        for (fate, n) in edgel_fates(&fe, &truth, &cams, &arm) {
-            *fates.entry(fate).or_insert(0) += n;
-        }
-        eprintln!(
-            "scene {}/{scenes} (seed {s}): {} matches, {:.3} within 0.5 px, {:.3} wrong; {} 3D lines, ends {:.2} mm median, coverage {:.2}",
-            k + 1,
-            stats.evaluated,
-            stats.within_fraction(),
-            stats.wrong_fraction(),
-            line.endpoint_err_mm.len() / 2,
-            line.endpoint_quantile(0.5),
-            line.coverage()
-        );
-        total.add(&stats);
-        on_arm.add(&arm_stats);
-        lines.add(&line);
-        for (name, ms) in fe.timings_ms {
-            timings.entry(name).or_default().push(ms);
+            super::eval_calibrate::hand_eye(&batch.batch(world, trials, seed, json)?, poses as usize, cameras)
         }
     }
-    let medians: BTreeMap<&str, f64> = timings
-        .into_iter()
-        .map(|(k, mut v)| {
-            v.sort_by(f64::total_cmp);
-            (k, v[v.len() / 2])
-        })
-        .collect();
-    let mut report = serde_json::json!({
-        "world": scn.world.name,
-        "realism": imaging.preset,
-        "seeds": [seed, seed + scenes - 1],
-        "scenes": scenes,
-        "disparity_within_0_5px": total.within_fraction(),
-        "wrong_matches": total.wrong_fraction(),
-        "matches_per_scene": total.evaluated as f64 / scenes.max(1) as f64,
-        "endpoint_err_mm_median": lines.endpoint_quantile(0.5),
-        "endpoint_err_mm_p90": lines.endpoint_quantile(0.9),
-        "coverage": lines.coverage(),
-        "lines3d_per_scene": lines.endpoint_err_mm.len() as f64 / 2.0 / scenes.max(1) as f64,
-        "arm": {
-            "matches_per_scene": on_arm.evaluated as f64 / scenes.max(1) as f64,
-            "disparity_within_0_5px": on_arm.within_fraction(),
-            "wrong_matches": on_arm.wrong_fraction(),
-            "lines3d_per_scene": lines.arm_lines as f64 / scenes.max(1) as f64,
-        },
-        "left_edgels": fractions_of(&fates),
-        "timings_ms": medians,
-        "unsettled_scenes": unsettled,
-    });
-    marvin::eval::add_intervals(
-        &mut report,
-        &[
-            ("disparity_within_0_5px", total.within_0_5px, total.evaluated),
-            ("wrong_matches", total.wrong, total.evaluated),
-            ("arm.disparity_within_0_5px", on_arm.within_0_5px, on_arm.evaluated),
-            ("arm.wrong_matches", on_arm.wrong, on_arm.evaluated),
-        ],
-    );
-    if json { emit(&report.to_string()) } else { emit(&serde_json::to_string_pretty(&report)?) }
-}
-
-/// Each count as a fraction of their total.
-fn fractions_of(counts: &BTreeMap<String, usize>) -> BTreeMap<String, f64> {
-    let total = counts.values().sum::<usize>().max(1) as f64;
-    counts.iter().map(|(k, &n)| (k.clone(), n as f64 / total)).collect()
 }
 
 /// `marvin eval merge`: the records of every shard, checked to be one whole batch, summarised.
@@ -368,8 +276,11 @@ fn merge(files: &[PathBuf], json: bool) -> anyhow::Result<()> {
         "run" => super::batch::print_report(super::eval_run_batch::summarise(&records)?, all, json),
         "locate" => super::batch::print_report(super::eval_locate::summarise(&records)?, all, json),
         "pick" => super::batch::print_report(super::eval_pick::summarise(&records)?, all, json),
-        other => {
-            anyhow::bail!("records of `eval {other}`: only `run`, `locate` and `pick` records can be merged so far")
+        "vision" => super::batch::print_report(super::eval_vision::summarise(&records)?, all, json),
+        "calibrate" => super::batch::print_report(super::eval_calibrate::summarise_hand_eye(&records)?, all, json),
+        "calibrate-cameras" => {
+            super::batch::print_report(super::eval_calibrate::summarise_cameras(&records)?, all, json)
         }
+        other => anyhow::bail!("records of `eval {other}`: not records this version of marvin writes"),
     }
 }

@@ -17,7 +17,7 @@ use serde::{Deserialize, Serialize};
 use vision::front_end::rectify::Rectification;
 
 /// How matched disparities compare with the truth.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct DisparityStats {
     /// Matches with a ground-truth disparity (a surface behind the left edgel).
     pub evaluated: usize,
@@ -177,7 +177,7 @@ pub fn edgel_fates(
 }
 
 /// How the 3D lines compare with the models' true feature edges.
-#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct LineStats {
     /// Distance of each 3D line end from the nearest true feature edge, millimetres.
     pub endpoint_err_mm: Vec<f64>,
