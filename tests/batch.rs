@@ -1,5 +1,6 @@
-//! `marvin eval run` as a batch at scale: shards merged, scenes run two at a time, and a batch
-//! killed in the middle and resumed, each giving the figures of one process over the same seeds.
+//! The `eval` verbs as batches at scale: shards merged, scenes run two at a time, and (`eval
+//! run`) a batch killed in the middle and resumed, each giving the figures of one process over
+//! the same seeds.
 //! On tuning seeds 1-4 of the ideal world, with the cameras and the hand-eye transform from files
 //! (`tests/fixtures/ideal_seed3/`: `marvin calibrate cameras worlds/ideal/widgets.toml --seed 3`,
 //! then `marvin calibrate ... --cameras` through them), as a cluster's shards share them.
@@ -84,9 +85,9 @@ fn shard_auto_without_a_scheduler_is_refused_naming_what_it_looked_for() {
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("K must be 1 to N"));
 }
 
-/// Two shards of `args` merged, and `args` two scenes at a time, give the figures of `args` in
-/// one process, but for the wall-time keys `timing`; `count` is the summary's scene count key.
-fn two_shards_and_jobs_agree(name: &str, args: &[&str], timing: &str, count: (&str, u64)) {
+/// `shards` shards of `args` merged, and `args` two scenes at a time, give the figures of `args`
+/// in one process, but for the wall-time keys `timing`; `count` is the summary's scene count key.
+fn shards_and_jobs_agree(name: &str, args: &[&str], shards: usize, timing: &str, count: (&str, u64)) {
     let dir = scratch(name);
     let p = |file: &str| dir.join(file).display().to_string();
     let verb = |extra: &[&str]| {
@@ -97,11 +98,12 @@ fn two_shards_and_jobs_agree(name: &str, args: &[&str], timing: &str, count: (&s
     let without_time = |v: Value| without(v, &[timing]);
     let whole = without_time(ok(verb(&[]).output().unwrap()));
     assert_eq!(whole[count.0], count.1);
-    for k in 1..=2 {
-        ok(verb(&["--shard", &format!("{k}/2"), "--out", &p(&format!("s{k}.jsonl"))]).output().unwrap());
+    let files: Vec<String> = (1..=shards).map(|k| p(&format!("s{k}.jsonl"))).collect();
+    for (k, file) in files.iter().enumerate() {
+        ok(verb(&["--shard", &format!("{}/{shards}", k + 1), "--out", file]).output().unwrap());
     }
-    let o = marvin().args(["eval", "merge", "--json", &p("s1.jsonl"), &p("s2.jsonl")]).output().unwrap();
-    assert_eq!(without_time(ok(o)), whole, "two shards merged");
+    let o = marvin().args(["eval", "merge", "--json"]).args(&files).output().unwrap();
+    assert_eq!(without_time(ok(o)), whole, "{shards} shards merged");
     assert_eq!(without_time(ok(verb(&["--jobs", "2"]).output().unwrap())), whole, "--jobs 2");
 }
 
@@ -111,22 +113,22 @@ fn two_shards_and_jobs_agree(name: &str, args: &[&str], timing: &str, count: (&s
 fn eval_locate_shards_merged_and_jobs_give_one_processs_figures() {
     let hand_eye = format!("{FIXTURES}/hand_eye.json");
     let args = ["eval", "locate", "worlds/ideal/widgets.toml", "--scenes", "4", "--seed", "1", "--hand-eye", &hand_eye];
-    two_shards_and_jobs_agree("batch_locate", &args, "match_ms_median", ("scenes", 4));
+    shards_and_jobs_agree("batch_locate", &args, 4, "match_ms_median", ("scenes", 4));
 }
 
-/// `eval pick` batched the same way (tuning seeds 1-2).
+/// `eval pick` batched the same way (tuning seeds 1-4).
 #[test]
 fn eval_pick_shards_merged_and_jobs_give_one_processs_figures() {
-    let args = ["eval", "pick", "worlds/ideal/widgets.toml", "--trials", "2", "--seed", "1"];
-    two_shards_and_jobs_agree("batch_pick", &args, "wall_s", ("trials", 2));
+    let args = ["eval", "pick", "worlds/ideal/widgets.toml", "--trials", "4", "--seed", "1"];
+    shards_and_jobs_agree("batch_pick", &args, 4, "wall_s", ("trials", 4));
 }
 
-/// `eval vision` batched the same way (tuning seeds 1-3, realistic widgets, the world file's
+/// `eval vision` batched the same way (tuning seeds 1-4, realistic widgets, the world file's
 /// cameras).
 #[test]
 fn eval_vision_shards_merged_and_jobs_give_one_processs_figures() {
-    let args = ["eval", "vision", "worlds/widgets.toml", "--scenes", "3", "--seed", "1"];
-    two_shards_and_jobs_agree("batch_vision", &args, "timings_ms", ("scenes", 3));
+    let args = ["eval", "vision", "worlds/widgets.toml", "--scenes", "4", "--seed", "1"];
+    shards_and_jobs_agree("batch_vision", &args, 4, "timings_ms", ("scenes", 4));
 }
 
 /// `eval calibrate` (hand-eye, through the shared cameras) batched the same way: a record per
@@ -136,7 +138,7 @@ fn eval_calibrate_shards_merged_and_jobs_give_one_processs_figures() {
     let cameras = format!("{FIXTURES}/cameras.json");
     let args = ["eval", "calibrate", "worlds/ideal/widgets.toml", "--trials", "2", "--seed", "1", "--poses", "8"];
     let args: Vec<&str> = args.into_iter().chain(["--cameras", &cameras]).collect();
-    two_shards_and_jobs_agree("batch_calibrate", &args, "shard", ("trials", 2));
+    shards_and_jobs_agree("batch_calibrate", &args, 2, "shard", ("trials", 2));
 }
 
 /// `eval calibrate cameras` batched the same way (tuning seeds 1-2, 8 board poses each).
@@ -144,5 +146,5 @@ fn eval_calibrate_shards_merged_and_jobs_give_one_processs_figures() {
 fn eval_calibrate_cameras_shards_merged_and_jobs_give_one_processs_figures() {
     let args =
         ["eval", "calibrate", "cameras", "worlds/ideal/widgets.toml", "--trials", "2", "--seed", "1", "--poses", "8"];
-    two_shards_and_jobs_agree("batch_calibrate_cameras", &args, "shard", ("trials", 2));
+    shards_and_jobs_agree("batch_calibrate_cameras", &args, 2, "shard", ("trials", 2));
 }
