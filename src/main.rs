@@ -126,7 +126,8 @@ enum Command {
     },
     /// Render a scene, run the front end and the model matcher; list the located objects with
     /// their errors against ground truth, the misses and the false reports. Or, with `--left L
-    /// --right R --cameras FILE` and no world, any stereo pair: what was found, with no truth.
+    /// --right R --cameras FILE` and no world, any stereo pair: what was found, compared with a
+    /// truth file only if `--truth` gives one.
     Locate {
         #[arg(required_unless_present = "left", conflicts_with_all = ["left", "right"])]
         world: Option<PathBuf>,
@@ -167,6 +168,12 @@ enum Command {
         /// run` places it; without it one is made first through the cameras vision sees by.
         #[arg(long, conflicts_with = "left")]
         hand_eye: Option<PathBuf>,
+        /// With --left/--right: the scene's truth, a scene.json of `marvin render` (its objects'
+        /// poses and the cameras as built): each report against the nearest object of its model
+        /// (correct within 10 mm and 5 deg, under the model's symmetries), and the objects not
+        /// located.
+        #[arg(long, requires = "left")]
+        truth: Option<PathBuf>,
     },
     /// Settle a scene and pick one object with the simulated arm, planned from the object's true
     /// pose, into the first bin; reports `placed` or what went wrong (`unplanned`, `miss`,
@@ -347,8 +354,9 @@ fn main() -> std::process::ExitCode {
             cameras: Some(cameras),
             models,
             json,
+            truth,
             ..
-        } => locate_pair::run(locate_pair::PairArgs { left, right, cameras, models, json }),
+        } => locate_pair::run(locate_pair::PairArgs { left, right, cameras, models, json, truth }),
         Command::Locate { world, seed, models, json, out, rerun, no_deblur, cameras, hand_eye, .. } => {
             let canny = cli::scene::canny_params(!no_deblur);
             anyhow::Context::context(world, "a world file, or --left, --right and --cameras").and_then(|world| {

@@ -139,4 +139,35 @@ fn a_pair_from_files_is_located_through_measured_cameras() {
     );
     assert!(right_ones + 2 >= truths.len(), "{right_ones} of {} parts found: {doc}", truths.len());
     assert_eq!(right_ones, located.len(), "a report not on a part of its model: {doc}");
+
+    // `--truth scene.json` compares after the matcher has run: the same reports, each with the
+    // distance to the nearest part of its model that this test measures itself.
+    let scene_json = dir.join("scene.json");
+    let pair = ["locate", "--left", left.to_str().unwrap(), "--right", right.to_str().unwrap(), "--cameras", CAMERAS];
+    let args: Vec<&str> = pair.iter().copied().chain(["--json", "--truth", scene_json.to_str().unwrap()]).collect();
+    let judged: serde_json::Value = serde_json::from_slice(&run(&args)).unwrap();
+    assert_eq!(judged["located"], doc["located"], "the truth file changes nothing the matcher does");
+    let reports = judged["truth"]["reports"].as_array().unwrap();
+    assert_eq!(reports.len(), located.len());
+    for (l, r) in located.iter().zip(reports) {
+        let at = pose(&l["cam_from_model"]).translation.vector;
+        let nearest = truths
+            .iter()
+            .filter(|(m, _)| m == l["model"].as_str().unwrap())
+            .map(|(_, t)| (t - at).norm() * 1e3)
+            .fold(f64::MAX, f64::min);
+        let said = r["pos_err_mm"].as_f64().unwrap();
+        assert!((said - nearest).abs() < 0.01, "{said} mm said, {nearest} mm measured: {r}");
+    }
+    // A truth file that is not one is refused, naming it and the field at fault.
+    let bad = dir.join("not_a_scene.json");
+    std::fs::write(&bad, r#"{"objects": [{"model": "block"}], "calibration": {"left": {"world_from_cam": {"translation_m": [0, 0, 0], "rotation_xyzw": [0, 0, 0, 1]}}}}"#).unwrap();
+    let args: Vec<&str> = pair.iter().copied().chain(["--truth", bad.to_str().unwrap()]).collect();
+    let o = Command::new(env!("CARGO_BIN_EXE_marvin"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args(&args)
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && e.contains("not_a_scene.json") && e.contains("objects[0].world_from_model"), "{e}");
 }

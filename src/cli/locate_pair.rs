@@ -1,11 +1,13 @@
 //! `marvin locate --left L --right R --cameras FILE`: the front end and the matcher on any
 //! stereo pair, from any cameras: what was found (model, pose and grasp in the left camera's
-//! frame, support), with no truth to compare with.
+//! frame, support); compared with a truth file (`--truth`, a scene.json of `marvin render`)
+//! only when one is given, after the matcher has run.
 
 use super::edges::load_grey_noting;
 use super::output::emit;
-use anyhow::bail;
+use anyhow::{Context, bail};
 use marvin::engine::perception::{Pair, front_end, locate_parts, part_models};
+use nalgebra::Isometry3;
 use std::path::{Path, PathBuf};
 
 /// The command's arguments in this form.
@@ -16,6 +18,8 @@ pub struct PairArgs {
     pub cameras: PathBuf,
     pub models: Option<Vec<String>>,
     pub json: bool,
+    /// A scene.json of `marvin render`, to compare with.
+    pub truth: Option<PathBuf>,
 }
 
 /// The cameras of a calibration file: the project's cameras.json, or a scene.json.
@@ -66,6 +70,8 @@ pub fn run(args: PairArgs) -> anyhow::Result<()> {
         }
         models.retain(|m| names.contains(&m.name));
     }
+    // Read before the matcher runs, so that a bad file costs nothing; used only after it.
+    let truth = args.truth.as_deref().map(SceneTruth::load).transpose()?;
     let pair = Pair { left, right, calib };
     let fe = front_end(&pair);
     // No table: nothing says where it is in these cameras' frame.
@@ -85,14 +91,20 @@ pub fn run(args: PairArgs) -> anyhow::Result<()> {
             })
         })
         .collect();
+    let compared = truth.as_ref().map(|t| t.compare(&library, &located));
     if args.json {
-        return emit(&serde_json::json!({ "located": rows, "lines3d": fe.lines3d.len(), "notes": notes }).to_string());
+        let mut out = serde_json::json!({ "located": rows, "lines3d": fe.lines3d.len(), "notes": notes });
+        if let Some(c) = &compared {
+            out["truth"] = c.to_json();
+        }
+        return emit(&out.to_string());
     }
     emit(&format!("{} parts located from {} 3D lines:", located.len(), fe.lines3d.len()))?;
-    for l in &located {
+    for (k, l) in located.iter().enumerate() {
         let t = l.cam_from_model.translation.vector * 1e3;
+        let against = compared.as_ref().map_or(String::new(), |c| c.line(k));
         emit(&format!(
-            "  {:<10} at ({:.1}, {:.1}, {:.1}) mm in the left camera's frame, {:.0}% of its edges matched, image support {:.2}",
+            "  {:<10} at ({:.1}, {:.1}, {:.1}) mm in the left camera's frame, {:.0}% of its edges matched, image support {:.2}{against}",
             l.model,
             t.x,
             t.y,
@@ -101,5 +113,135 @@ pub fn run(args: PairArgs) -> anyhow::Result<()> {
             l.image_support
         ))?;
     }
+    if let Some(c) = &compared {
+        emit(&c.summary())?;
+    }
     Ok(())
+}
+
+/// A scene's truth as `marvin render` writes it: each object's model and pose in the left
+/// camera's frame (the camera as built, where the measured cameras put the origin).
+pub struct SceneTruth {
+    path: PathBuf,
+    objects: Vec<(u64, String, Isometry3<f64>)>,
+}
+
+/// A report is correct within this distance (mm) and turn (deg) of an object of its model, as
+/// `marvin eval locate` has it.
+const CORRECT_MM: f64 = 10.0;
+const CORRECT_DEG: f64 = 5.0;
+
+impl SceneTruth {
+    pub fn load(path: &Path) -> anyhow::Result<SceneTruth> {
+        let text = std::fs::read_to_string(path).with_context(|| format!("{}", path.display()))?;
+        let scene: serde_json::Value =
+            serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))?;
+        let field = |v: &serde_json::Value, name: &str| -> anyhow::Result<mesh::pose::PoseRecord> {
+            serde_json::from_value(v.clone()).with_context(|| format!("{}: field `{name}`", path.display()))
+        };
+        // The camera as built; an ideal scene's is the calibration's.
+        let cam = match scene.pointer("/as_built/left/pinhole/world_from_cam") {
+            Some(v) => field(v, "as_built.left.pinhole.world_from_cam")?,
+            None => field(
+                scene.pointer("/calibration/left/world_from_cam").unwrap_or(&serde_json::Value::Null),
+                "calibration.left.world_from_cam",
+            )?,
+        };
+        let cam_from_world = Isometry3::from(&cam).inverse();
+        let Some(list) = scene["objects"].as_array() else {
+            bail!("{}: no `objects` list (a scene.json of `marvin render` has one)", path.display());
+        };
+        let mut objects = Vec::new();
+        for (k, o) in list.iter().enumerate() {
+            let model = o["model"].as_str().with_context(|| format!("{}: objects[{k}].model", path.display()))?;
+            let pose = field(&o["world_from_model"], &format!("objects[{k}].world_from_model"))?;
+            objects.push((
+                o["id"].as_u64().unwrap_or(k as u64),
+                model.to_string(),
+                cam_from_world * Isometry3::from(&pose),
+            ));
+        }
+        Ok(SceneTruth { path: path.to_path_buf(), objects })
+    }
+
+    /// Each report against the nearest object of its model.
+    pub fn compare(&self, library: &mesh::Library, located: &[vision::matcher::Located]) -> Compared {
+        let reports = located
+            .iter()
+            .map(|l| {
+                let symmetries = library.get(&l.model).map(marvin::eval::symmetries).unwrap_or_default();
+                self.objects
+                    .iter()
+                    .filter(|(_, model, _)| *model == l.model)
+                    .map(|(id, _, truth)| {
+                        let (m, rad) = marvin::eval::pose_error(&l.cam_from_model, truth, &symmetries);
+                        (*id, m * 1e3, rad.to_degrees())
+                    })
+                    .min_by(|a, b| a.1.total_cmp(&b.1))
+            })
+            .collect();
+        Compared {
+            file: self.path.display().to_string(),
+            objects: self.objects.iter().map(|(id, m, _)| (*id, m.clone())).collect(),
+            reports,
+        }
+    }
+}
+
+/// Reports against a truth file: per report the nearest object of its model (id, mm, deg).
+pub struct Compared {
+    file: String,
+    objects: Vec<(u64, String)>,
+    reports: Vec<Option<(u64, f64, f64)>>,
+}
+
+impl Compared {
+    fn correct(r: &Option<(u64, f64, f64)>) -> bool {
+        r.is_some_and(|(_, mm, deg)| mm <= CORRECT_MM && deg <= CORRECT_DEG)
+    }
+
+    /// The objects no correct report is of (some may be hidden from the cameras).
+    fn not_located(&self) -> Vec<&(u64, String)> {
+        self.objects
+            .iter()
+            .filter(|(id, _)| !self.reports.iter().any(|r| Self::correct(r) && r.is_some_and(|(o, _, _)| o == *id)))
+            .collect()
+    }
+
+    fn line(&self, k: usize) -> String {
+        match &self.reports[k] {
+            Some((id, mm, deg)) => {
+                let verdict = if Self::correct(&self.reports[k]) { "correct" } else { "FALSE" };
+                format!("; object {id}: {mm:.1} mm, {deg:.1} deg off ({verdict})")
+            }
+            None => "; no object of this model (FALSE)".into(),
+        }
+    }
+
+    fn summary(&self) -> String {
+        let correct = self.reports.iter().filter(|r| Self::correct(r)).count();
+        let missing: Vec<String> = self.not_located().iter().map(|(id, m)| format!("{m} (object {id})")).collect();
+        format!(
+            "against {}: {correct} of {} reports correct; not located ({} of {} objects, some perhaps hidden): {}",
+            self.file,
+            self.reports.len(),
+            missing.len(),
+            self.objects.len(),
+            if missing.is_empty() { "none".into() } else { missing.join(", ") }
+        )
+    }
+
+    fn to_json(&self) -> serde_json::Value {
+        let reports: Vec<serde_json::Value> = self
+            .reports
+            .iter()
+            .map(|r| match r {
+                Some((id, mm, deg)) => serde_json::json!({ "object": id, "pos_err_mm": mm, "rot_err_deg": deg, "correct": Self::correct(r) }),
+                None => serde_json::json!({ "object": null, "correct": false }),
+            })
+            .collect();
+        let not_located: Vec<serde_json::Value> =
+            self.not_located().iter().map(|(id, m)| serde_json::json!({ "object": id, "model": m })).collect();
+        serde_json::json!({ "file": self.file, "reports": reports, "not_located": not_located })
+    }
 }
