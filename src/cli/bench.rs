@@ -72,6 +72,11 @@ pub struct BenchArgs {
     /// with the speed-up and the slices' parallel efficiency (`{"table1": [...]}` with --json).
     #[arg(long)]
     table1: bool,
+    /// (vision) See through these measured cameras (`marvin calibrate cameras`' cameras.json,
+    /// placed where the left camera truly stands, as `marvin eval vision --cameras` places
+    /// them) instead of the world file's: the realistic cell's cameras differ from its file.
+    #[arg(long)]
+    cameras: Option<PathBuf>,
 }
 
 /// Median of `runs` timings of `f`, in milliseconds, after one warm-up run.
@@ -228,8 +233,13 @@ fn render(args: &BenchArgs) -> anyhow::Result<()> {
 /// `marvin bench vision`: the front end's stages, then the matcher and the whole cycle.
 fn vision(args: &BenchArgs) -> anyhow::Result<()> {
     let s = setup(&args.world)?;
-    // The pair as the world's preset forms it; vision given the world file's calibration.
+    // The pair as the world's preset forms it; vision given the world file's calibration, or
+    // the measured cameras.
     let imaging = sim::imaging::Imaging::new(&s.scn.world);
+    let calib = match &args.cameras {
+        Some(path) => super::scene::eval_cameras(&imaging, Some(path))?.vision,
+        None => s.calib.clone(),
+    };
     let (l, r) = imaging.render_stereo(&s.scene.render_scene(&s.scn.library, &imaging), s.scn.world.seed);
     let left = vision::GreyImage::new(l.width, l.height, l.image).expect("a rendered frame is whole");
     let right = vision::GreyImage::new(r.width, r.height, r.image).expect("a rendered frame is whole");
@@ -242,11 +252,11 @@ fn vision(args: &BenchArgs) -> anyhow::Result<()> {
     });
     let mut whole_stages = StageTimes::default();
     let whole = median_ms(args.runs as usize, || {
-        whole_stages.add(&marvin::front_end::run(&left, &right, &s.calib, &params).timings_ms);
+        whole_stages.add(&marvin::front_end::run(&left, &right, &calib, &params).timings_ms);
     });
     let mut sliced_stages = StageTimes::default();
     let sliced = median_ms(args.runs as usize, || {
-        sliced_stages.add(&vision::front_end::slices::run_sliced(&left, &right, &s.calib, &params, 8).timings_ms);
+        sliced_stages.add(&vision::front_end::slices::run_sliced(&left, &right, &calib, &params, 8).timings_ms);
     });
     let mut results = vec![("canny", canny)];
     for name in ["strings", "rectify", "pmf", "geom2d", "geom3d"] {
@@ -270,28 +280,30 @@ fn vision(args: &BenchArgs) -> anyhow::Result<()> {
     // left image's edgels for verification; and the whole cycle, stereo pair in, located
     // objects out.
     let models = super::scene::matcher_models(&s.scn.library, None);
-    let mp = marvin::engine::perception::part_params(Some(&s.calib.left.cam_from_world()));
-    let fe = vision::front_end::slices::run_sliced(&left, &right, &s.calib, &params, 8);
+    let mp = marvin::engine::perception::part_params(Some(&calib.left.cam_from_world()));
+    let fe = vision::front_end::slices::run_sliced(&left, &right, &calib, &params, 8);
     let lines: Vec<vision::matcher::Seg> =
         fe.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
-    let evidence = vision::matcher::verify::ImageEvidence::of_pair(&s.calib, &fe);
+    let evidence = vision::matcher::verify::ImageEvidence::of_pair(&calib, &fe);
     let image_evidence = median_ms(args.runs as usize, || {
-        std::hint::black_box(vision::matcher::verify::ImageEvidence::of_pair(&s.calib, &fe));
+        std::hint::black_box(vision::matcher::verify::ImageEvidence::of_pair(&calib, &fe));
     });
     let matching = median_ms(args.runs as usize, || {
         std::hint::black_box(vision::matcher::locate_all(&models, &lines, &mp, Some(&evidence)));
     });
     let cycle = median_ms(args.runs as usize, || {
-        let fe = vision::front_end::slices::run_sliced(&left, &right, &s.calib, &params, 8);
+        let fe = vision::front_end::slices::run_sliced(&left, &right, &calib, &params, 8);
         let lines: Vec<vision::matcher::Seg> =
             fe.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
-        let evidence = vision::matcher::verify::ImageEvidence::of_pair(&s.calib, &fe);
+        let evidence = vision::matcher::verify::ImageEvidence::of_pair(&calib, &fe);
         std::hint::black_box(vision::matcher::locate_all(&models, &lines, &mp, Some(&evidence)));
     });
     results.push(("image_evidence", image_evidence));
     results.push(("match", matching));
     results.push(("vision_cycle", cycle));
-    let what = format!("{}; canny one thread, the rest {} threads", args.world.display(), rayon::current_num_threads());
+    let seen = args.cameras.as_ref().map_or(String::new(), |c| format!(" through {}", c.display()));
+    let what =
+        format!("{}{seen}; canny one thread, the rest {} threads", args.world.display(), rayon::current_num_threads());
     if args.table1 {
         return table1(args, &results, &mut sliced_stages);
     }
