@@ -180,6 +180,14 @@ impl CannyWorkspace {
         }
     }
 
+    /// The smoothed gradient's magnitudes of `img` (zero on the border), for the noise tests.
+    #[cfg(test)]
+    pub(crate) fn gradient_magnitudes(&mut self, img: &GreyImage, sigma: f32) -> &[f32] {
+        self.smooth(img, sigma);
+        self.gradients(img.width, img.height);
+        &self.mag
+    }
+
     /// Gaussian smoothing by a row pass then a column pass; borders replicate the edge pixels.
     fn smooth(&mut self, img: &GreyImage, sigma: f32) {
         let (w, h) = (img.width, img.height);

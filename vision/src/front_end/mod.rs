@@ -2,6 +2,7 @@
 //! in, the 3D lines of the scene (and what led to them) out, as TINA computed them.
 //!
 //! - [`canny`](mod@canny): Canny edges (sigma 1, separable Gaussian) located to sub-pixel acuity.
+//! - [`noise`]: each image's own noise, and Canny's thresholds raised above it.
 //! - [`strings`]: edgels linked into ordered 8-connected edge strings.
 //! - [`photometric`]: the right camera's grey levels as the left's, measured from PMF's own
 //!   matches (cameras differ in gain, black level and response).
@@ -17,6 +18,7 @@
 pub mod canny;
 pub mod lines2d;
 pub mod lines3d;
+pub mod noise;
 pub mod photometric;
 pub mod pipeline;
 pub mod pmf;

@@ -89,7 +89,9 @@ pub fn run(left: &GreyImage, right: &GreyImage, calib: &StereoCalibration, canny
 /// The front end: Canny on both images, strings of the left, rectification, PMF.
 pub fn run_with(left: &GreyImage, right: &GreyImage, geometry: &Geometry, canny_params: &CannyParams) -> FrontEnd {
     let mut watch = Stopwatch::start();
-    let (l, r) = rayon::join(|| canny_reusing(left, canny_params), || canny_reusing(right, canny_params));
+    // Each camera's thresholds above its own noise.
+    let (left_params, right_params) = (canny_params.for_image(left), canny_params.for_image(right));
+    let (l, r) = rayon::join(|| canny_reusing(left, &left_params), || canny_reusing(right, &right_params));
     watch.lap("canny");
     let left_strings = link_strings(&l, MIN_STRING);
     watch.lap("strings");

@@ -255,8 +255,10 @@ pub fn run_sliced(
     let rect = Rectification::new(calib);
     let plans = plan(left.height, left.width, n, &rect);
     let owned: Vec<Range<usize>> = plans.iter().map(|p| p.owned.clone()).collect();
+    // Each camera's thresholds above its own noise, the same in every slice.
+    let (left_params, right_params) = (params.for_image(left), params.for_image(right));
     let (left_bands, right_bands) =
-        rayon::join(|| canny_bands(left, &owned, params), || canny_bands(right, &owned, params));
+        rayon::join(|| canny_bands(left, &owned, &left_params), || canny_bands(right, &owned, &right_params));
     let slices: Vec<SliceResult> = plans
         .par_iter()
         .enumerate()
