@@ -6,8 +6,9 @@
 //! little else, and is judged on its whole outline as if the light were behind the cameras.
 //!
 //! Nothing here is given: the light is the one the reports' faces agree on
-//! ([`super::light::Light::fit`]), the parts' albedos are the models', and the table's grey is
-//! read beside the reports' edges that rest on it, on the side away from the part. The image
+//! ([`super::light::Light::fit_readings`]), a part's faces are taken at the scene's middling
+//! brightness (its material is not known), and the table's grey is read beside the reports'
+//! edges that rest on it, on the side away from the part. The image
 //! look judges its starts again on the edges the light lets show once the light is known
 //! ([`super::merge`]): on the tuning seeds (`marvin eval locate`, `widgets.toml` 1-500,
 //! `dense.toml` and `side_light.toml` 1-200) located 98.50 / 93.21 / 95.76% -> 98.53 / 93.53 /
@@ -60,9 +61,10 @@ impl Shown {
         (greys.len() >= MIN_TABLE_SAMPLES).then(|| Shown { light, table_grey: median(&mut greys) })
     }
 
-    /// The grey a face of `model` with outward normal `n` (`cam` frame) shows.
-    fn grey(&self, model: &MatcherModel, n: &Vector3<f64>) -> f64 {
-        model.albedo * self.light.predict(n)
+    /// The grey a face with outward normal `n` (`cam` frame) shows, of a part of the scene's
+    /// middling brightness.
+    fn grey(&self, n: &Vector3<f64>) -> f64 {
+        self.light.predict(n)
     }
 
     /// Per line of `model` at `pose`, whether the light leaves its two sides (its faces turned
@@ -84,7 +86,7 @@ impl Shown {
         let mut facing = model.face_sides[k]
             .iter()
             .filter(|(n, _, _)| n.dot(&(eye - mid)) > 0.0)
-            .map(|(n, _, _)| self.grey(model, &(pose.rotation * n)));
+            .map(|(n, _, _)| self.grey(&(pose.rotation * n)));
         match (facing.next(), facing.next(), facing.next()) {
             (Some(a), Some(b), None) => (a - b).abs() < DIM_STEP,
             (Some(a), None, None) => (a - self.table_grey).abs() < DIM_STEP,
@@ -195,11 +197,14 @@ mod tests {
     fn the_edges_between_faces_of_one_grey_are_dim() {
         let (block, pose, cam, _) = block_on_table();
         let facing: Vec<usize> = (0..block.lines.len()).filter(|k| block.faces_camera(*k, &pose)).collect();
-        let front = light(&cam, Vector3::new(-0.2, -1.0, 1.0), 0.2 * 255.0, 0.8 * 255.0);
+        // The light as the image shows it on the block: its material's share of the drawing light.
+        let albedo = crate::matcher::fixtures::albedo("block");
+        let seen = |l: Light| Light { ambient: albedo * l.ambient, towards_light: albedo * l.towards_light };
+        let front = seen(light(&cam, Vector3::new(-0.2, -1.0, 1.0), 0.2 * 255.0, 0.8 * 255.0));
         let shown = Shown { light: front, table_grey: 40.0 };
         assert!(facing.iter().all(|k| !shown.dim_lines(&block, &pose)[*k]));
-        let behind = light(&cam, Vector3::new(0.2, 1.0, 1.0), 0.2 * 255.0, 0.8 * 255.0);
-        let shown = Shown { light: behind, table_grey: block.albedo * behind.ambient };
+        let behind = seen(light(&cam, Vector3::new(0.2, 1.0, 1.0), 0.2 * 255.0, 0.8 * 255.0));
+        let shown = Shown { light: behind, table_grey: behind.ambient };
         let dim = shown.dim_lines(&block, &pose);
         let up = Vector3::from(Table::from_cam_from_table(&cam.cam_from_world()).up);
         for k in facing {

@@ -11,6 +11,14 @@ pub(crate) fn model(name: &str) -> MatcherModel {
     MatcherModel::from_model(lib.get(name).unwrap_or_else(|| panic!("no model `{name}` in the library")))
 }
 
+/// The mean albedo of a library model's faces: how the fixtures draw it (the matcher itself
+/// does not know a part's material).
+pub(crate) fn albedo(name: &str) -> f64 {
+    let lib = mesh::Library::load_default().unwrap();
+    let mesh = &lib.get(name).unwrap_or_else(|| panic!("no model `{name}` in the library")).mesh;
+    mesh.albedo.iter().map(|a| *a as f64).sum::<f64>() / mesh.albedo.len().max(1) as f64
+}
+
 /// A 512 x 512 image of `objects` (models at poses in the `cam` frame) against a uniform
 /// `background`, by casting a ray through each pixel centre, a face of normal `n` (`cam`)
 /// showing `shade(n)` grey levels per unit albedo (a light's prediction: taken as a function,
@@ -22,8 +30,10 @@ pub(crate) fn render(
     shade: &dyn Fn(&Vector3<f64>) -> f64,
     background: u8,
 ) -> crate::image::GreyImage {
-    let faces: Vec<([Point3<f64>; 3], f64)> =
-        objects.iter().flat_map(|(m, pose)| m.triangles.iter().map(move |t| (t.map(|p| pose * p), m.albedo))).collect();
+    let faces: Vec<([Point3<f64>; 3], f64)> = objects
+        .iter()
+        .flat_map(|(m, pose)| m.triangles.iter().map(move |t| (t.map(|p| pose * p), albedo(&m.name))))
+        .collect();
     let mut pixels = vec![background; 512 * 512];
     for (i, px) in pixels.iter_mut().enumerate() {
         let d = cam.ray_cam((i % 512) as f64, (i / 512) as f64);

@@ -607,7 +607,7 @@ mod tests {
         let (left, right) = &s.cams;
         let right_from_cam = right.cam_from_world() * left.world_from_cam;
         let light = light_from_behind(s);
-        let table_grey = (s.block.albedo * light.ambient).round();
+        let table_grey = (crate::matcher::fixtures::albedo(&s.block.name) * light.ambient).round();
         let draw = |cam: &mesh::PinholeCamera, from_left: Isometry3<f64>| {
             let l = super::super::light::Light { towards_light: from_left.rotation * light.towards_light, ..light };
             let image = crate::matcher::fixtures::render(
@@ -645,7 +645,11 @@ mod tests {
         let (left_edges, right_edges, lines, table_grey) = side_lit(&s);
         let (left, right) = &s.cams;
         let right_from_cam = right.cam_from_world() * left.world_from_cam;
-        let shown = Shown { light: light_from_behind(&s), table_grey };
+        // The light as the image shows it on the block: its material's share of the drawing light.
+        let (light, albedo) = (light_from_behind(&s), crate::matcher::fixtures::albedo(&s.block.name));
+        let seen =
+            super::super::light::Light { ambient: albedo * light.ambient, towards_light: albedo * light.towards_light };
+        let shown = Shown { light: seen, table_grey };
         let dim = shown.dim_lines(&s.block, &s.truth);
         let facing = (0..s.block.lines.len()).filter(|k| s.block.faces_camera(*k, &s.truth)).count();
         assert!(lines.len() < facing, "{} of the block's {facing} edges show", lines.len());

@@ -81,6 +81,7 @@ fn locate_all_in_pool(
                 kept[i] = rival;
             }
         }
+        super::superset::settle_larger(models, (scene, p), ev, RIVAL_MAX_SUPPORT, &mut kept, 0);
     }
     if let Some(ev) = image {
         let turns = super::shading::TurnedCandidates::default();
@@ -189,6 +190,13 @@ fn look_again_from_the_image(
     };
     let first_new = kept.len();
     resolve(models, (scene, p), found, kept, &mut claimed, Some(ev));
+    // What it finds faces the rival rule, as the first looks' reports did.
+    for i in first_new..kept.len() {
+        if let Some(rival) = rival_reading(models, scene, p, ev, kept, i) {
+            kept[i] = rival;
+        }
+    }
+    super::superset::settle_larger(models, (scene, p), ev, RIVAL_MAX_SUPPORT, kept, first_new);
     let mut i = first_new;
     while i < kept.len() {
         if super::shading::fits_light(models, ev, (light, RIVAL_MAX_SUPPORT), kept, i) {

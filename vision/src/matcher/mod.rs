@@ -39,6 +39,7 @@
 //! - [`second_look`]: objects with too few 3D lines, from one 3D line and an image line.
 //! - [`depths`]: stereo's depths at the left image's matched edgels.
 //! - [`turns`]: the half turns that carry a part most nearly onto itself (what it is misread as).
+//! - [`superset`]: a part read as a smaller model its shape holds (a bracket for a channel).
 //! - [`turnover`]: a part read turned over, turned back where the edgels' depths or the image say so.
 //! - [`light`]: the scene's light as faces' grey levels show it.
 //! - [`shading`]: the grey levels of a reading's faces, read off the edgels beside its edges.
@@ -68,6 +69,7 @@ pub mod ranking;
 pub mod search;
 pub mod second_look;
 pub mod shading;
+pub mod superset;
 pub mod support;
 pub mod table;
 pub mod table_look;

@@ -52,8 +52,6 @@ pub struct MatcherModel {
     /// Grasp positions: `model_from_gripper` and jaw opening (metres).
     pub grasps: Vec<(Isometry3<f64>, f64)>,
     pub total_length: f64,
-    /// The surface's albedo (the mean over its faces): how bright it shows under a light.
-    pub albedo: f64,
     /// Centre and radius of a sphere holding the wireframe.
     pub(crate) sphere: (Point3<f64>, f64),
     /// The lines' indices, longest first (the order support is counted in).
@@ -108,7 +106,6 @@ impl MatcherModel {
             faces,
             triangles,
             total_length: lines.iter().map(|l| l.len).sum(),
-            albedo: mean_albedo(&m.mesh),
             first_marking: m.wireframe.len(),
             grasps: m.grasps.iter().map(|g| (g.model_from_gripper, g.opening)).collect(),
             lines,
@@ -226,14 +223,6 @@ fn resting_normals(triangles: &[[Point3<f64>; 3]]) -> Vec<Vector3<f64>> {
         }
     }
     out
-}
-
-/// The mean albedo of a mesh's faces (0.5 for a mesh without faces).
-fn mean_albedo(mesh: &mesh::TriMesh) -> f64 {
-    if mesh.albedo.is_empty() {
-        return 0.5;
-    }
-    mesh.albedo.iter().map(|a| *a as f64).sum::<f64>() / mesh.albedo.len() as f64
 }
 
 /// A face along a line: its outward normal, the unit vector from the line into the face

@@ -7,8 +7,10 @@
 //! The grey level of a face is read off the edgels along its edges: Canny samples the smoothed
 //! image [`crate::front_end::canny::SIDE_PX`] to either side of each edge, and the model says
 //! on which side of each projected edge each of its faces lies. No image is needed beyond the
-//! edge map, and nothing about the light is given: it is fitted to the readings
-//! ([`super::light::Light::fit`]), robustly, as a few of them may be wrong.
+//! edge map, and nothing about the light or the parts' materials is given: the light is fitted
+//! to the readings ([`super::light::Light::fit_readings`]), robustly, as a few of them may be
+//! wrong, each reading's brightness left free, so a reading is judged by how its own faces
+//! differ ([`super::light::Light::relative_misfit`]), never by how bright its model should be.
 
 use super::light::{FaceShade, Light, median};
 use super::model::MatcherModel;
@@ -40,7 +42,6 @@ pub fn face_shades(
     ev: &ImageEvidence,
     solids: &[&Solid],
 ) -> Vec<FaceShade> {
-    let albedo = model.albedo.max(1e-3);
     // A convex solid hides none of its own surface from the camera.
     let own = (!model.convex).then(|| Solid::new(model, pose));
     let hidden = |p: &Point3<f64>| own.as_ref().is_some_and(|o| o.hides(p)) || solids.iter().any(|s| s.hides(p));
@@ -93,11 +94,7 @@ pub fn face_shades(
     faces
         .into_iter()
         .filter(|(_, g)| g.len() >= MIN_SAMPLES)
-        .map(|(n, mut g)| FaceShade {
-            normal: pose.rotation * n,
-            grey_per_albedo: median(&mut g) / albedo,
-            samples: g.len(),
-        })
+        .map(|(n, mut g)| FaceShade { normal: pose.rotation * n, grey: median(&mut g), samples: g.len() })
         .collect()
 }
 
@@ -130,8 +127,8 @@ fn reading_shades(
     face_shades(model, pose, ev, &others)
 }
 
-/// A report is looked at again turned over when its faces lie this far (grey levels per unit
-/// albedo, on average over its samples) from the scene's light.
+/// A report is looked at again turned over when its faces lie this far (grey levels, its
+/// brightness divided out: [`Light::relative_misfit`]) from the scene's light.
 pub const TURN_MISFIT: f64 = 5.0;
 /// A report on little 3D evidence (less of its model's length matched than the merge's bar
 /// for rivals, 30%) whose faces lie this far from the light, and which no turned reading
@@ -142,19 +139,6 @@ pub const TURN_MISFIT: f64 = 5.0;
 /// the light of reporting seed 30012 of `side_light.toml`, where four correct reports had been
 /// dropped).
 pub const REJECT_MISFIT: f64 = 8.0;
-/// A rival on more 3D evidence fits the light only if what its faces show lies within this
-/// share of what the light predicts for its model's albedo ([`Light::albedo_factor`];
-/// [`fits_light`], for the merge's rival rule: [`judge_by_shading`] no longer drops a report
-/// on it). What gives such a report away is its
-/// albedo: an L-bracket read on a U-channel whose third arm is hidden lies along the channel's
-/// lines and edgels, but its faces show the channel's grey, 0.65 / 0.75 = 0.87 of a bracket's.
-/// Over the tuning seeds (`widgets.toml` 1-250, `dense.toml` and `side_light.toml` 1-100) the
-/// 2749 correct reports matching 30% or more of their model's length showed 0.966-1.033; two
-/// L-brackets on U-channels 0.876 and 0.868, a wedge 7.5 deg off 0.894. (Their misfit, the
-/// median error of the lit faces alone, told them apart there too, 6.3 against 20-27, but
-/// dropped two correct reports of `side_light.toml` whose one lit face, narrow in the image,
-/// read 0.87 and 0.93: a block, seed 163, and an L-bracket, 129.)
-pub const WELL_SUPPORTED_ALBEDO_OFF: f64 = 0.07;
 /// A turned reading takes a report's place only if it fits the light this many times better.
 const TURN_GAIN: f64 = 3.0;
 /// ...keeps this share of the report's matched 3D length...
@@ -168,10 +152,11 @@ const TURN_KEEP_SAMPLES: f64 = 0.5;
 /// Each report on little 3D evidence whose faces the scene's light does not explain: replaced
 /// by the report turned over (a half turn about one of its box's axes, refitted on the 3D lines
 /// and the image) where that keeps the 3D evidence and fits the light far better, else dropped
-/// ([`REJECT_MISFIT`]); "little" is under `max_support` of the model's length matched. Each
-/// report on more is dropped only if its faces show another albedo than its model's
-/// ([`WELL_SUPPORTED_ALBEDO_OFF`]). The light is fitted to all the reports' faces at once
-/// ([`Light::fit`]); each report's faces are read with the others as solids that may hide them.
+/// ([`REJECT_MISFIT`]); "little" is under `max_support` of the model's length matched. A report
+/// on more stands. The light is fitted to all the reports' faces at once, each report's
+/// brightness free ([`Light::fit_readings`]), and each report is judged by how its own faces
+/// differ ([`Light::relative_misfit`]); each report's faces are read with the others as solids
+/// that may hide them.
 /// The reports come polished ([`super::polish`]); a report is dropped only if its pose before
 /// the polish (`unpolished`, in `kept`'s order) fits no better, and turned from that pose.
 /// Returns which reports of the new `kept` were turned (to be polished in their turn), and the
@@ -209,7 +194,7 @@ pub(crate) fn judge_by_shading(
         .enumerate()
         .map(|(i, l)| model_of(&l.model).map(|m| shades_of(i, m, &l.cam_from_model)).unwrap_or_default())
         .collect();
-    let Some(light) = Light::fit(&per.concat()) else { return (vec![false; kept.len()], None) };
+    let Some((light, _)) = Light::fit_readings(&per) else { return (vec![false; kept.len()], None) };
     // Each report judged on its own against the one light, in parallel: turned, dropped, or
     // left as it is.
     let verdicts: Vec<Verdict> = kept
@@ -234,8 +219,10 @@ pub(crate) fn judge_by_shading(
             if report.support_fraction >= max_support {
                 return Verdict::Stands;
             }
-            let Some(misfit) = light.misfit(&per[i]).filter(|m| *m > TURN_MISFIT) else { return Verdict::Stands };
-            let misfit = match unpolished_shades().map(|faces| light.misfit(&faces)) {
+            let Some(misfit) = light.relative_misfit(&per[i]).filter(|m| *m > TURN_MISFIT) else {
+                return Verdict::Stands;
+            };
+            let misfit = match unpolished_shades().map(|faces| light.relative_misfit(&faces)) {
                 Some(Some(before)) if before <= TURN_MISFIT => return Verdict::Stands,
                 Some(Some(before)) => misfit.min(before),
                 _ => misfit,
@@ -249,7 +236,7 @@ pub(crate) fn judge_by_shading(
                 .filter_map(|turn| {
                     let c = turns.refit(model, (scene, p), ev, start * turn)?;
                     let shades = shades_of(i, model, &c.pose);
-                    let fit = light.misfit(&shades)?;
+                    let fit = light.relative_misfit(&shades)?;
                     let shown: usize = shades.iter().map(|f| f.samples).sum();
                     (fit * TURN_GAIN < misfit
                         && c.score >= TURN_KEEP_SUPPORT * report.support
@@ -280,7 +267,8 @@ pub(crate) fn judge_by_shading(
 
 /// Whether report `i` of `kept` (the others solids that may hide it) shows `light` as the
 /// reports [`judge_by_shading`] let stand do: on `max_support` of its model's length matched
-/// or more, its model's albedo; on less, faces within [`REJECT_MISFIT`] of the light.
+/// or more, any; on less, faces within [`REJECT_MISFIT`] of the light, its brightness divided
+/// out.
 pub(crate) fn fits_light(
     models: &[MatcherModel],
     ev: &ImageEvidence,
@@ -289,12 +277,11 @@ pub(crate) fn fits_light(
     i: usize,
 ) -> bool {
     let Some(model) = models.iter().find(|m| m.name == kept[i].model) else { return true };
-    let faces = reading_shades(i, model, &kept[i].cam_from_model, ev, &solids_of(models, kept));
     if kept[i].support_fraction >= max_support {
-        light.albedo_factor(&faces).is_none_or(|f| (f - 1.0).abs() <= WELL_SUPPORTED_ALBEDO_OFF)
-    } else {
-        light.misfit(&faces).is_none_or(|m| m <= REJECT_MISFIT)
+        return true;
     }
+    let faces = reading_shades(i, model, &kept[i].cam_from_model, ev, &solids_of(models, kept));
+    light.relative_misfit(&faces).is_none_or(|m| m <= REJECT_MISFIT)
 }
 
 /// What the shading check makes of one report.
@@ -405,31 +392,38 @@ mod tests {
         let truth = truth_light();
         for (faces, (m, _)) in per.iter().zip(&objects) {
             assert!(faces.len() >= 2, "{}: {} faces read", m.name, faces.len());
+            let albedo = crate::matcher::fixtures::albedo(&m.name);
             for f in faces {
-                // Grey levels are whole numbers of 1/albedo per unit albedo; Canny smooths.
-                let err = (f.grey_per_albedo - truth.predict(&f.normal)).abs();
-                assert!(
-                    err < 3.0,
-                    "{}: a face reads {:.1}, drawn {:.1}",
-                    m.name,
-                    f.grey_per_albedo,
-                    truth.predict(&f.normal)
-                );
+                // Grey levels are whole numbers; Canny smooths.
+                let drawn = albedo * truth.predict(&f.normal);
+                assert!((f.grey - drawn).abs() < 3.0, "{}: a face reads {:.1}, drawn {drawn:.1}", m.name, f.grey);
             }
         }
-        let light = Light::fit(&per.concat()).expect("a light");
-        assert!(light.misfit(&per.concat()).unwrap() < 2.0, "{light:?}");
-        assert!(light.misfit(&per[1]).unwrap() < 2.0, "the wedge as drawn fits the light");
+        // Each reading's brightness free: the parts' materials differ, and are not known.
+        let (light, brightness) = Light::fit_readings(&per).expect("a light");
+        for (faces, b) in per.iter().zip(&brightness) {
+            assert!(light.misfit(&super::super::light::scaled(faces, *b)).unwrap() < 2.0, "{light:?}");
+        }
+        assert!(light.relative_misfit(&per[1]).unwrap() < 2.0, "the wedge as drawn fits the light");
         // The wedge turned end for end about the box's axes lies in the same box; its faces then
         // face other ways and the light does not explain what is read beside them.
+        // A turned reading that shows two lit faces, or a lit one beside one the light leaves
+        // in shadow, misfits; a lit face alone reading what the light predicts for it is as the
+        // wedge's unknown material might show it (here one turn: its lit face reads 192, the
+        // light has 190 for its normal).
         let wedge = &objects[1].0;
-        let turned: Vec<f64> = crate::matcher::turns::half_turns(wedge)
-            .iter()
-            .filter_map(|turn| light.misfit(&shades_of(1, &(objects[1].1 * turn))))
-            .collect();
-        assert!(!turned.is_empty());
-        for m in turned {
-            assert!(m > TURN_MISFIT, "a turned wedge fits the light within {m:.1}");
+        let lit = |faces: &[FaceShade]| faces.iter().filter(|f| light.towards_light.dot(&f.normal) > 0.0).count();
+        let turned: Vec<Vec<FaceShade>> =
+            crate::matcher::turns::half_turns(wedge).iter().map(|turn| shades_of(1, &(objects[1].1 * turn))).collect();
+        let judged: Vec<f64> =
+            turned.iter().filter(|f| f.len() >= 2).filter_map(|f| light.relative_misfit(f)).collect();
+        assert_eq!(judged.len(), turned.len(), "every turn reads two faces or more");
+        let misfits = judged.iter().filter(|m| **m > TURN_MISFIT).count();
+        assert!(misfits >= 2, "turned readings that misfit: {judged:?}");
+        for (faces, m) in turned.iter().zip(&judged) {
+            if lit(faces) >= 2 {
+                assert!(*m > TURN_MISFIT, "a turned wedge with two lit faces fits the light within {m:.1}");
+            }
         }
     }
 
@@ -479,29 +473,48 @@ mod before_the_polish {
     use crate::matcher::model::{Located, MatchParams};
     use nalgebra::{Translation3, UnitQuaternion, Vector3};
 
-    /// The test scene's wedge on little 3D evidence, polished 12 deg off about its box's x axis
-    /// through its bounding sphere's centre (its faces then lean from the light by far more than
-    /// [`REJECT_MISFIT`]): it stands if the pose the looks gave, before the polish, fits the
-    /// light, keeping the polished pose, and is dropped if that pose does not fit either, or
-    /// was not given.
+    /// The test scene with four parts more, its hex prism on little 3D evidence, polished 12 deg
+    /// off about its axis through its bounding sphere's centre (a lit face then reads where the
+    /// light leaves it in shadow: 18.6 grey levels off, its brightness divided out, more than
+    /// [`REJECT_MISFIT`]; as it lies, 0.4): it stands if the pose the looks gave, before the
+    /// polish, fits the light, keeping the polished pose, and is dropped if that pose does not
+    /// fit either (18 deg off: 28.7), or was not given. (A tilt that keeps the ratio of its lit
+    /// faces, or a reading with one lit face, shows nothing its unknown material could not
+    /// explain: the wedge here reads one lit face. With three parts the light, each reading's
+    /// brightness free, bent to the tilted prism: the others pin it.)
     #[test]
     fn a_report_whose_pose_before_the_polish_fits_the_light_stands() {
-        let (cam, objects) = scene();
+        let (cam, mut objects) = scene();
+        // More parts, so that the right readings' faces, not a wrong one's, fix the light: with
+        // each reading's brightness free, a few readings' faces leave it loose.
+        let at = |x: f64, y: f64, z: f64, r: (f64, f64, f64)| {
+            Isometry3::from_parts(Vector3::new(x, y, z).into(), UnitQuaternion::from_euler_angles(r.0, r.1, r.2))
+        };
+        for (name, pose) in [
+            ("u_channel", at(0.02, 0.1, 0.8, (-2.2, 0.2, 0.4))),
+            ("t_piece", at(-0.12, -0.13, 0.85, (-2.0, 0.4, -0.3))),
+            ("widget", at(0.12, -0.13, 0.85, (-2.4, -0.2, 0.9))),
+            ("l_bracket", at(-0.13, 0.14, 0.8, (-2.1, 0.1, 1.2))),
+        ] {
+            objects.push((crate::matcher::fixtures::model(name), pose));
+        }
+        let n = objects.len();
         let drawn: Vec<(&MatcherModel, Isometry3<f64>)> = objects.iter().map(|(m, p)| (m, *p)).collect();
         let edges = canny(&render(&cam, &drawn, &|n| truth_light().predict(n), 40), &CannyParams::default());
         let ev = ImageEvidence::new(&cam, &edges, Vec::new());
         let models: Vec<MatcherModel> = objects.iter().map(|(m, _)| m.clone()).collect();
         let truth: Vec<Isometry3<f64>> = objects.iter().map(|(_, pose)| *pose).collect();
-        let (centre, _) = models[1].bounding_sphere();
+        const TILTED: usize = 2;
+        let (centre, _) = models[TILTED].bounding_sphere();
         let tilted = |deg: f64| {
-            let turn = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), deg.to_radians());
-            truth[1] * Translation3::from(centre.coords) * turn * Translation3::from(-centre.coords)
+            let turn = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), deg.to_radians());
+            truth[TILTED] * Translation3::from(centre.coords) * turn * Translation3::from(-centre.coords)
         };
         let judged = |before: &[Isometry3<f64>]| {
-            let mut kept: Vec<Located> = (0..3)
+            let mut kept: Vec<Located> = (0..n)
                 .map(|i| Located {
                     model: models[i].name.clone(),
-                    cam_from_model: if i == 1 { tilted(12.0) } else { truth[i] },
+                    cam_from_model: if i == TILTED { tilted(12.0) } else { truth[i] },
                     support: 0.1 * models[i].total_length,
                     support_fraction: 0.1,
                     scene_lines: Vec::new(),
@@ -514,13 +527,16 @@ mod before_the_polish {
             kept.into_iter().map(|r| (r.model, r.cam_from_model)).collect::<Vec<_>>()
         };
         let names = |kept: &[(String, Isometry3<f64>)]| kept.iter().map(|(m, _)| m.clone()).collect::<Vec<_>>();
-        assert_eq!(names(&judged(&[])), ["block", "hex_prism"], "the tilted wedge alone is dropped");
-        assert_eq!(names(&judged(&[truth[0], tilted(-12.0), truth[2]])), ["block", "hex_prism"]);
+        let all: Vec<String> = models.iter().map(|m| m.name.clone()).collect();
+        let without_prism: Vec<String> = all.iter().filter(|m| *m != "hex_prism").cloned().collect();
+        assert_eq!(names(&judged(&[])), without_prism, "the tilted prism alone is dropped");
+        let before: Vec<Isometry3<f64>> = (0..n).map(|i| if i == TILTED { tilted(18.0) } else { truth[i] }).collect();
+        assert_eq!(names(&judged(&before)), without_prism);
         let kept = judged(&truth);
-        assert_eq!(names(&kept), ["block", "wedge", "hex_prism"]);
-        assert_eq!(kept[1].1, tilted(12.0), "the wedge keeps its polished pose");
+        assert_eq!(names(&kept), all);
+        assert_eq!(kept[TILTED].1, tilted(12.0), "the prism keeps its polished pose");
 
-        // A report found after the check: the wedge as it lies shows the check's light, tilted
+        // A report found after the check: the prism as it lies shows the check's light, tilted
         // 12 deg it does not.
         let report = |i: usize, pose: Isometry3<f64>| Located {
             model: models[i].name.clone(),
@@ -531,12 +547,13 @@ mod before_the_polish {
             image_support: 1.0,
             grasps: Vec::new(),
         };
-        let solids = solids_of(&models, &(0..3).map(|i| report(i, truth[i])).collect::<Vec<_>>());
-        let faces: Vec<FaceShade> =
-            (0..3).flat_map(|i| reading_shades(i, &models[i], &truth[i], &ev, &solids)).collect();
-        let light = Light::fit(&faces).expect("a light");
-        let with_wedge_at = |pose| [report(0, truth[0]), report(1, pose), report(2, truth[2])];
-        assert!(fits_light(&models, &ev, (&light, 0.3), &with_wedge_at(truth[1]), 1));
-        assert!(!fits_light(&models, &ev, (&light, 0.3), &with_wedge_at(tilted(12.0)), 1));
+        let solids = solids_of(&models, &(0..n).map(|i| report(i, truth[i])).collect::<Vec<_>>());
+        let faces: Vec<Vec<FaceShade>> =
+            (0..n).map(|i| reading_shades(i, &models[i], &truth[i], &ev, &solids)).collect();
+        let (light, _) = Light::fit_readings(&faces).expect("a light");
+        let with_prism_at =
+            |pose| (0..n).map(|i| report(i, if i == TILTED { pose } else { truth[i] })).collect::<Vec<_>>();
+        assert!(fits_light(&models, &ev, (&light, 0.3), &with_prism_at(truth[2]), 2));
+        assert!(!fits_light(&models, &ev, (&light, 0.3), &with_prism_at(tilted(12.0)), 2));
     }
 }

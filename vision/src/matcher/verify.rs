@@ -327,6 +327,48 @@ pub fn image_support_shown(
     if shown <= 0.0 { (0.0, unhidden / all.max(1e-12), 0.0) } else { (seen / shown, unhidden / all, shown / unhidden) }
 }
 
+/// The camera-facing wireframe of `model` at `pose` where it runs further than `apart_px` in
+/// the image from every camera-facing line of `other` at `other_pose`, none of `solids` hiding
+/// it: the share of that part that runs along edgels, and its length (pixels). What the image
+/// shows of a larger model beyond a smaller one it holds ([`super::superset`]).
+pub fn image_support_beyond(
+    (model, pose): (&MatcherModel, &Isometry3<f64>),
+    (other, other_pose): (&MatcherModel, &Isometry3<f64>),
+    ev: &ImageEvidence,
+    solids: &[&super::occlusion::Solid],
+    apart_px: f64,
+) -> (f64, f64) {
+    let theirs: Vec<[Point2<f64>; 2]> = facing_lines(other, other_pose, ev.cam).map(|(_, _, ends)| ends).collect();
+    let near_theirs = |q: &Point2<f64>| {
+        theirs.iter().any(|[a, b]| {
+            let ab = b - a;
+            let t = ((q - a).dot(&ab) / ab.norm_squared().max(1e-12)).clamp(0.0, 1.0);
+            (a + ab * t - q).norm() <= apart_px
+        })
+    };
+    let (mut seen, mut beyond) = (0.0, 0.0);
+    for (_, [a3, b3], [a, b]) in facing_lines(model, pose, ev.cam) {
+        let len = (b - a).norm();
+        if len < 2.0 * STEP_PX {
+            continue;
+        }
+        let steps = (len / STEP_PX) as usize;
+        let (dir, bins) = ((b - a) / len, EdgeMask::bins_along((b - a) / len));
+        for s in 1..steps {
+            let f = s as f64 / steps as f64;
+            let q = a + (b - a) * f;
+            if near_theirs(&q) || solids.iter().any(|s| s.hides(&(a3 + (b3 - a3) * f))) {
+                continue;
+            }
+            beyond += STEP_PX;
+            if ev.mask.any_near(q.x, q.y, bins) && edgel_along(ev.edges, &ev.mask, q.x, q.y, dir) {
+                seen += STEP_PX;
+            }
+        }
+    }
+    (if beyond > 0.0 { seen / beyond } else { 0.0 }, beyond)
+}
+
 /// The image edges of the objects located so far (their camera-facing wireframes, projected):
 /// evidence those objects already account for. A later candidate whose wireframe runs mostly
 /// along them shows nothing of its own (an L-bracket read into a U-channel's corner does).

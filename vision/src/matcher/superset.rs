@@ -1,0 +1,166 @@
+//! A part read as a smaller model that its own shape holds: an L-bracket is a U-channel with one
+//! arm missing. Where the channel's third arm gives stereo no 3D line (its long edges along the
+//! rasters, or hidden in part), a bracket reading lies along the channel's 3D lines and edgels,
+//! and on little 3D evidence it may be all that is reported there. What tells them apart is
+//! whether the image shows the larger model's extra edges where they would be, never how bright
+//! the faces are: the matcher does not know a part's material (issue 48).
+//!
+//! Where a larger model fits around a smaller one is found by the matcher itself, once per pair
+//! of models: the larger model's search run on the smaller one's wireframe as its scene.
+
+use super::model::{Located, MatchParams, MatcherModel, Seg};
+use super::occlusion::Solid;
+use super::verify::{ImageEvidence, image_support_beyond};
+use nalgebra::Isometry3;
+use std::collections::HashMap;
+use std::sync::{Mutex, OnceLock};
+
+/// A larger model holds a smaller one where the smaller one, sought among the larger one's
+/// lines, finds this share of its length along them or more. An L-bracket finds 0.86 along a
+/// U-channel's (its bar is 10 mm shorter than the channel's, and its end face lies inside it).
+const HOLDS: f64 = 0.8;
+/// ...and only if its wireframe is this much longer (else neither holds the other).
+const LARGER_BY: f64 = 1.1;
+/// The image shows the larger model beyond the report where its wireframe further than
+/// [`APART_PX`] from the report's runs along edgels for this share of that length or more...
+const SHOWN_BEYOND: f64 = 0.75;
+/// ...over at least this length (pixels).
+const MIN_BEYOND_PX: f64 = 20.0;
+/// How far (pixels) from the report's projected wireframe the larger model's counts as beyond it.
+const APART_PX: f64 = 3.0;
+
+/// Poses of `outer` in `inner`'s model frame at which `outer`'s wireframe runs along
+/// [`HOLDS`] of `inner`'s (`inner_from_outer`), found once per pair of models (by name and
+/// length) and kept.
+pub(crate) fn holding_poses(inner: &MatcherModel, outer: &MatcherModel, p: &MatchParams) -> Vec<Isometry3<f64>> {
+    type Key = (String, String, u64, u64);
+    static KNOWN: OnceLock<Mutex<HashMap<Key, Vec<Isometry3<f64>>>>> = OnceLock::new();
+    let key = (inner.name.clone(), outer.name.clone(), inner.total_length.to_bits(), outer.total_length.to_bits());
+    let known = KNOWN.get_or_init(Default::default);
+    if let Some(poses) = known.lock().unwrap_or_else(|e| e.into_inner()).get(&key) {
+        return poses.clone();
+    }
+    let poses = if outer.total_length < LARGER_BY * inner.total_length {
+        Vec::new()
+    } else {
+        // The smaller model sought among the larger one's lines: where it is found, the larger
+        // one holds it.
+        let wireframe: Vec<Seg> = outer.lines.iter().take(outer.first_marking).map(|l| Seg::new(l.a, l.b)).collect();
+        let bare = MatchParams { table: None, ..*p };
+        let found = super::search::locate(inner, &wireframe, &bare, None);
+        found
+            .into_iter()
+            .filter(|l| l.support >= HOLDS * inner.total_length)
+            .map(|l| l.cam_from_model.inverse())
+            .collect()
+    };
+    known.lock().unwrap_or_else(|e| e.into_inner()).insert(key, poses.clone());
+    poses
+}
+
+/// What to make of report `i` (of `kept`, the others solids that may hide it) where a larger
+/// model holds it: the image shows the larger model's edges beyond the report's (along edgels
+/// for [`SHOWN_BEYOND`] of [`MIN_BEYOND_PX`] or more, hidden parts left out) at some holding
+/// pose. Only reports on little 3D evidence (`max_support` of their model's length) are
+/// looked at.
+pub(crate) enum Larger {
+    /// No larger model shows: the report stands.
+    No,
+    /// The larger model's reading, refitted on the 3D lines and the image.
+    Reading(Located),
+    /// A larger model shows, but no reading of it refits (through the table, or on no 3D line):
+    /// the report is not what lies there.
+    Unfitted,
+}
+
+/// [`Larger`] for report `i` of `kept`.
+pub(crate) fn larger_reading(
+    models: &[MatcherModel],
+    (scene, p): (&[Seg], &MatchParams),
+    ev: &ImageEvidence,
+    (kept, max_support): (&[Located], f64),
+    i: usize,
+) -> Larger {
+    let r = &kept[i];
+    let Some(own) = models.iter().find(|m| m.name == r.model) else { return Larger::No };
+    if r.support_fraction >= max_support {
+        return Larger::No;
+    }
+    let solids: Vec<Solid> = kept
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| *k != i)
+        .filter_map(|(_, l)| models.iter().find(|m| m.name == l.model).map(|m| Solid::new(m, &l.cam_from_model)))
+        .collect();
+    let solids: Vec<&Solid> = solids.iter().collect();
+    let shown: Vec<(&MatcherModel, Isometry3<f64>)> = models
+        .iter()
+        .filter(|m| m.name != own.name)
+        .flat_map(|m| holding_poses(own, m, p).into_iter().map(move |t| (m, r.cam_from_model * t)))
+        .filter(|(m, pose)| {
+            let (share, px) = image_support_beyond((m, pose), (own, &r.cam_from_model), ev, &solids, APART_PX);
+            share >= SHOWN_BEYOND && px >= MIN_BEYOND_PX
+        })
+        .collect();
+    if shown.is_empty() {
+        return Larger::No;
+    }
+    let turns = super::shading::TurnedCandidates::default();
+    shown
+        .into_iter()
+        .filter_map(|(m, pose)| turns.refit(m, (scene, p), ev, pose).map(|c| c.located(m, c.image_support)))
+        .max_by(|a, b| (a.image_support * a.support).total_cmp(&(b.image_support * b.support)))
+        .map_or(Larger::Unfitted, Larger::Reading)
+}
+
+/// Each report of `kept` from `first` on that a larger model holds ([`larger_reading`]):
+/// replaced by the larger model's reading, or dropped where that does not refit.
+pub(crate) fn settle_larger(
+    models: &[MatcherModel],
+    (scene, p): (&[Seg], &MatchParams),
+    ev: &ImageEvidence,
+    max_support: f64,
+    kept: &mut Vec<Located>,
+    first: usize,
+) {
+    let mut i = first;
+    while i < kept.len() {
+        match larger_reading(models, (scene, p), ev, (kept, max_support), i) {
+            Larger::No => i += 1,
+            Larger::Reading(l) => {
+                kept[i] = l;
+                i += 1;
+            }
+            Larger::Unfitted => {
+                kept.remove(i);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::matcher::fixtures::model;
+
+    /// A U-channel holds an L-bracket (its bar and one arm along the bracket's), and nothing
+    /// holds the channel; the pose puts the bracket's wireframe on the channel's.
+    #[test]
+    fn a_channel_holds_a_bracket_and_not_the_other_way() {
+        let (bracket, channel) = (model("l_bracket"), model("u_channel"));
+        let p = MatchParams::default();
+        let poses = holding_poses(&bracket, &channel, &p);
+        assert!(!poses.is_empty(), "the channel holds the bracket");
+        let wireframe: Vec<Seg> =
+            channel.lines.iter().take(channel.first_marking).map(|l| Seg::new(l.a, l.b)).collect();
+        for bracket_from_channel in &poses {
+            let channel_from_bracket = bracket_from_channel.inverse();
+            let (support, _) = crate::matcher::support::support_at(&bracket, &channel_from_bracket, &wireframe, &p);
+            assert!(support >= HOLDS * bracket.total_length, "{support} of {}", bracket.total_length);
+            // The bracket's arm on one of the channel's: its box 5 mm along the channel's bar.
+            let offset = channel_from_bracket.translation.vector;
+            assert!((offset.norm() - 0.005).abs() < 0.001, "{offset:?}");
+        }
+        assert!(holding_poses(&channel, &bracket, &p).is_empty(), "a bracket is too small to hold a channel");
+    }
+}
