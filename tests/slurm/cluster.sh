@@ -6,7 +6,8 @@
 #   tests/slurm/cluster.sh down DIR
 #
 # Needs Debian's slurm-wlm and munge (`apt-get install slurm-wlm munge`; .ci/run installs them)
-# and root, as slurmd starts jobs as their user.
+# and root, as slurmd starts jobs as their user. Both daemons are addressed on loopback, so the
+# machine's name need not resolve.
 set -euo pipefail
 
 usage() { echo "usage: $0 up DIR CTLD_PORT SLURMD_PORT | down DIR" >&2; exit 2; }
@@ -30,7 +31,7 @@ up() {
     mem=$(awk '/MemTotal/ { print int($2 / 1024 / 2) }' /proc/meminfo)
     cat >"$dir/slurm.conf" <<CONF
 ClusterName=marvin-test
-SlurmctldHost=$host
+SlurmctldHost=$host(127.0.0.1)
 SlurmctldPort=$ctld_port
 SlurmdPort=$slurmd_port
 AuthType=auth/munge
@@ -54,7 +55,7 @@ JobAcctGatherType=jobacct_gather/none
 AccountingStorageType=accounting_storage/none
 MpiDefault=none
 ReturnToService=2
-NodeName=$host CPUs=$(nproc) RealMemory=$mem State=UNKNOWN
+NodeName=$host NodeAddr=127.0.0.1 CPUs=$(nproc) RealMemory=$mem State=UNKNOWN
 PartitionName=test Nodes=ALL Default=YES MaxTime=INFINITE State=UP
 CONF
     export SLURM_CONF=$dir/slurm.conf
