@@ -82,9 +82,9 @@ impl Light {
         let ambient_start = Light::solve_with_ambient(faces, &vec![1.0; faces.len()], darkest, None);
         // No face shows less than the ambient term, which is kept below the darkest faces
         // read: left free, it took the one top that parts lying flat all show for the ambient
-        // term and the faces in shadow for wrong ones (seen on reporting seed 30012 of
-        // side_light.toml; on its tuning seeds 1-50 without the consensus start one part fewer
-        // is located, 0.920 against 0.922).
+        // term and the faces in shadow for wrong ones (on tuning seeds 1-50 of side_light.toml,
+        // without the consensus start one part fewer is located, 0.920 against 0.922; the case
+        // was first seen on reporting seed 30012).
         let consensus = Light::consensus(faces, darkest);
         let light = [all_lit, ambient_start, consensus]
             .into_iter()

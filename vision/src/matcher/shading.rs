@@ -137,7 +137,10 @@ pub const TURN_MISFIT: f64 = 5.0;
 /// than 8 from the light against 3, 6 and 8 false ones; of those on little 3D evidence, 0, 3
 /// and 3 against 2, 5 and 7 (measured before the light's consensus start, which put right
 /// the light of reporting seed 30012 of `side_light.toml`, where four correct reports had been
-/// dropped).
+/// dropped). Those counts were in grey levels per unit albedo; since the matcher stopped
+/// knowing albedos the misfit is in grey levels with the reading's brightness divided out, and
+/// 8 was kept, not tuned again (the judge's tuning figures: docs/TUNING.md, "The shading judge
+/// without albedos").
 pub const REJECT_MISFIT: f64 = 8.0;
 /// A turned reading takes a report's place only if it fits the light this many times better.
 const TURN_GAIN: f64 = 3.0;
