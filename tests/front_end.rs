@@ -18,7 +18,7 @@ fn run_scene(world: &str, seed: u64) -> (DisparityStats, usize) {
     let arm = ArmMask::from_ids(l.width, l.height, &l.ids);
     let left = vision::GreyImage::new(l.width, l.height, l.image).unwrap();
     let right = vision::GreyImage::new(r.width, r.height, r.image).unwrap();
-    let fe = marvin::front_end::run(&left, &right, &calib, &vision::CannyParams::default());
+    let fe = marvin::front_end::run(&left, &right, &calib, &Default::default(), &vision::CannyParams::default());
     let truth = TruthScene::new(scene.world_meshes(&scn.library).map(|(_, m)| m));
     (disparity_stats(&fe, &truth, &EvalCameras::exact(&calib), &arm).0, fe.left.edgels.len())
 }
@@ -53,7 +53,14 @@ fn the_default_world_meets_the_front_end_targets() {
         let left = vision::GreyImage::new(l.width, l.height, l.image.clone()).unwrap();
         let right = vision::GreyImage::new(r.width, r.height, r.image).unwrap();
         // The front end as shipped: 8 slices, joined.
-        let fe = vision::front_end::slices::run_sliced(&left, &right, &calib, &vision::CannyParams::default(), 8);
+        let fe = vision::front_end::slices::run_sliced(
+            &left,
+            &right,
+            &calib,
+            &Default::default(),
+            &vision::CannyParams::default(),
+            8,
+        );
         let truth = TruthScene::new(scene.world_meshes(&scn.library).map(|(_, m)| m));
         let arm = ArmMask::from_ids(l.width, l.height, &l.ids);
         disparities.add(&disparity_stats(&fe, &truth, &EvalCameras::exact(&calib), &arm).0);
@@ -90,8 +97,8 @@ fn sliced_and_whole_image_runs_agree() {
         let left = vision::GreyImage::new(l.width, l.height, l.image).unwrap();
         let right = vision::GreyImage::new(r.width, r.height, r.image).unwrap();
         let params = vision::CannyParams::default();
-        let whole = marvin::front_end::run(&left, &right, &calib, &params);
-        let sliced = vision::front_end::slices::run_sliced(&left, &right, &calib, &params, 8);
+        let whole = marvin::front_end::run(&left, &right, &calib, &Default::default(), &params);
+        let sliced = vision::front_end::slices::run_sliced(&left, &right, &calib, &Default::default(), &params, 8);
         let near = |p: [f64; 3], q: [f64; 3]| (0..3).map(|i| (p[i] - q[i]).powi(2)).sum::<f64>().sqrt() <= 5e-4;
         for a in whole.lines3d.iter().filter(|a| !on_arm(a.a, a.b)) {
             total += 1;

@@ -252,11 +252,13 @@ fn vision(args: &BenchArgs) -> anyhow::Result<()> {
     });
     let mut whole_stages = StageTimes::default();
     let whole = median_ms(args.runs as usize, || {
-        whole_stages.add(&marvin::front_end::run(&left, &right, &calib, &params).timings_ms);
+        whole_stages.add(&marvin::front_end::run(&left, &right, &calib, &Default::default(), &params).timings_ms);
     });
     let mut sliced_stages = StageTimes::default();
     let sliced = median_ms(args.runs as usize, || {
-        sliced_stages.add(&vision::front_end::slices::run_sliced(&left, &right, &calib, &params, 8).timings_ms);
+        sliced_stages.add(
+            &vision::front_end::slices::run_sliced(&left, &right, &calib, &Default::default(), &params, 8).timings_ms,
+        );
     });
     let mut results = vec![("canny", canny)];
     for name in ["strings", "rectify", "pmf", "geom2d", "geom3d"] {
@@ -281,7 +283,7 @@ fn vision(args: &BenchArgs) -> anyhow::Result<()> {
     // objects out.
     let models = super::scene::matcher_models(&s.scn.library, None);
     let mp = marvin::engine::perception::part_params(Some(&calib.left.cam_from_world()));
-    let fe = vision::front_end::slices::run_sliced(&left, &right, &calib, &params, 8);
+    let fe = vision::front_end::slices::run_sliced(&left, &right, &calib, &Default::default(), &params, 8);
     let lines: Vec<vision::matcher::Seg> =
         fe.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
     let evidence = vision::matcher::verify::ImageEvidence::of_pair(&calib, &fe);
@@ -292,7 +294,7 @@ fn vision(args: &BenchArgs) -> anyhow::Result<()> {
         std::hint::black_box(vision::matcher::locate_all(&models, &lines, &mp, Some(&evidence)));
     });
     let cycle = median_ms(args.runs as usize, || {
-        let fe = vision::front_end::slices::run_sliced(&left, &right, &calib, &params, 8);
+        let fe = vision::front_end::slices::run_sliced(&left, &right, &calib, &Default::default(), &params, 8);
         let lines: Vec<vision::matcher::Seg> =
             fe.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
         let evidence = vision::matcher::verify::ImageEvidence::of_pair(&calib, &fe);

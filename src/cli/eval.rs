@@ -45,6 +45,11 @@ pub enum EvalTarget {
         /// part as known) instead of the world file's.
         #[arg(long)]
         cameras: Option<PathBuf>,
+        /// The hand-eye calibration (`marvin calibrate`'s file) that places the table, as `marvin
+        /// run` places it: PMF then searches no disparity under the table's top. Without it the
+        /// front end searches the constant workspace depths, as where no table is known.
+        #[arg(long)]
+        hand_eye: Option<PathBuf>,
         #[command(flatten)]
         batch: BatchArgs,
     },
@@ -237,8 +242,9 @@ pub enum EvalCalibrateWhat {
 
 pub fn run(target: EvalTarget) -> anyhow::Result<()> {
     match target {
-        EvalTarget::Vision { world, scenes, seed, slices, no_deblur, json, cameras, batch } => {
-            let sources = super::eval_vision::Sources { cameras, deblur: !no_deblur, slices: slices as usize };
+        EvalTarget::Vision { world, scenes, seed, slices, no_deblur, json, cameras, hand_eye, batch } => {
+            let sources =
+                super::eval_vision::Sources { cameras, hand_eye, deblur: !no_deblur, slices: slices as usize };
             super::eval_vision::eval(&batch.batch(world, scenes, seed, json)?, &sources)
         }
         EvalTarget::Locate { world, scenes, seed, no_deblur, json, cameras, hand_eye, batch } => {

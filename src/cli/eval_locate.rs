@@ -43,7 +43,7 @@ pub fn eval(b: &Batch, sources: &Sources) -> anyhow::Result<()> {
     let params = marvin::engine::perception::part_params(table.cam_from_table.as_ref());
     let shared = json!({ "world_name": scn.world.name, "realism": imaging.preset, "table": table.source });
     let scene = |s: u64| {
-        let p = run_pipeline(&scn, &imaging, s, &sources.canny, &cams);
+        let p = run_pipeline(&scn, &imaging, s, &sources.canny, &cams, table.cam_from_table.as_ref());
         let lines: Vec<vision::matcher::Seg> =
             p.front_end.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
         let clock = std::time::Instant::now();

@@ -16,6 +16,8 @@ use std::path::PathBuf;
 /// How the front end sees: through which cameras, deblurred or not, in how many slices.
 pub struct Sources {
     pub cameras: Option<PathBuf>,
+    /// Places the table (the front end then searches nothing under it).
+    pub hand_eye: Option<PathBuf>,
     pub deblur: bool,
     pub slices: usize,
 }
@@ -43,9 +45,17 @@ pub fn eval(b: &Batch, sources: &Sources) -> anyhow::Result<()> {
     // measured ones.
     let cams = eval_cameras(&imaging, sources.cameras.as_deref())?;
     let cameras = sources.cameras.as_ref().map_or("the world file's".to_string(), |p| p.display().to_string());
+    let (cam_from_table, table) = match &sources.hand_eye {
+        Some(file) => {
+            let t = super::table::cam_from_table(&b.world, &scn, &cams.vision, Some(file), b.seed, b.json)?;
+            (t.cam_from_table, t.source)
+        }
+        None => (None, "none: no --hand-eye".to_string()),
+    };
+    let workspace = marvin::engine::perception::workspace(cam_from_table.as_ref());
     let shared = json!({
         "world_name": scn.world.name, "realism": imaging.preset, "cameras": cameras,
-        "deblur": sources.deblur, "slices": sources.slices,
+        "deblur": sources.deblur, "slices": sources.slices, "table": table,
     });
     let params = canny_params(sources.deblur);
     let scene = |s: u64| {
@@ -54,9 +64,9 @@ pub fn eval(b: &Batch, sources: &Sources) -> anyhow::Result<()> {
         let left = vision::GreyImage::new(l.width, l.height, l.image.clone()).expect("a rendered frame is whole");
         let right = vision::GreyImage::new(r.width, r.height, r.image.clone()).expect("a rendered frame is whole");
         let fe = if sources.slices > 1 {
-            vision::front_end::slices::run_sliced(&left, &right, &cams.vision, &params, sources.slices)
+            vision::front_end::slices::run_sliced(&left, &right, &cams.vision, &workspace, &params, sources.slices)
         } else {
-            marvin::front_end::run(&left, &right, &cams.vision, &params)
+            marvin::front_end::run(&left, &right, &cams.vision, &workspace, &params)
         };
         let truth = TruthScene::new(scene.world_meshes(&scn.library).map(|(_, m)| m));
         let arm = ArmMask::from_ids(l.width, l.height, &l.ids);
@@ -115,6 +125,7 @@ pub fn summarise(records: &[Record]) -> anyhow::Result<Value> {
         "world": first.shared["world_name"],
         "realism": first.shared["realism"],
         "cameras": first.shared["cameras"],
+        "table": first.shared.get("table").cloned().unwrap_or_else(|| json!("none")),
         "seeds": first.range,
         "scenes": records.len(),
         "disparity_within_0_5px": total.within_fraction(),

@@ -45,12 +45,13 @@ pub fn run(args: LocateArgs, canny: &vision::CannyParams) -> anyhow::Result<()> 
     }
     let seed = seed.unwrap_or(scn.world.seed);
     let imaging = sim::imaging::Imaging::new(&scn.world);
-    let p = run_pipeline(&scn, &imaging, seed, canny, &super::scene::eval_cameras(&imaging, cameras.as_deref())?);
-    let calib = p.cams.vision.clone();
+    let cams = super::scene::eval_cameras(&imaging, cameras.as_deref())?;
+    let calib = cams.vision.clone();
+    let table = super::table::cam_from_table(world, &scn, &calib, hand_eye.as_deref(), seed, json)?;
+    let p = run_pipeline(&scn, &imaging, seed, canny, &cams, table.cam_from_table.as_ref());
     let lines: Vec<Seg> = p.front_end.lines3d.iter().map(|l| Seg::new(l.start(), l.end())).collect();
     let sought = matcher_models(&scn.library, models.as_deref());
     let evidence = vision::matcher::verify::ImageEvidence::of_pair(&calib, &p.front_end);
-    let table = super::table::cam_from_table(world, &scn, &calib, hand_eye.as_deref(), seed, json)?;
     let located = locate_all(&sought, &lines, &part_params(table.cam_from_table.as_ref()), Some(&evidence));
     // Compare with the truth (evaluation only).
     let truths: Vec<(String, Isometry3<f64>)> =

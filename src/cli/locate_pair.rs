@@ -73,8 +73,8 @@ pub fn run(args: PairArgs) -> anyhow::Result<()> {
     // Read before the matcher runs, so that a bad file costs nothing; used only after it.
     let truth = args.truth.as_deref().map(SceneTruth::load).transpose()?;
     let pair = Pair { left, right, calib };
-    let fe = front_end(&pair);
     // No table: nothing says where it is in these cameras' frame.
+    let fe = front_end(&pair, None);
     let located = locate_parts(&models, &pair, &fe, None);
     for note in &notes {
         eprintln!("note: {note}");

@@ -34,13 +34,15 @@ pub fn eval_cameras(
 }
 
 /// Settles the scene of `seed`, renders it as `imaging` has the cell, and runs the sliced
-/// front end on it with the cameras `cams` gives vision.
+/// front end on it with the cameras `cams` gives vision (searching no disparity under the
+/// table, where `cam_from_table` places it, as a run does).
 pub fn run_pipeline(
     scn: &Scenario,
     imaging: &sim::imaging::Imaging,
     seed: u64,
     canny: &vision::CannyParams,
     cams: &marvin::eval::truth::EvalCameras,
+    cam_from_table: Option<&nalgebra::Isometry3<f64>>,
 ) -> Pipeline {
     let cams = cams.clone();
     let calib = &cams.vision;
@@ -48,7 +50,8 @@ pub fn run_pipeline(
     let (l, r) = imaging.render_stereo(&scene.render_scene(&scn.library, imaging), seed);
     let left = vision::GreyImage::new(l.width, l.height, l.image.clone()).expect("a rendered frame is whole");
     let right = vision::GreyImage::new(r.width, r.height, r.image.clone()).expect("a rendered frame is whole");
-    let front_end = vision::front_end::slices::run_sliced(&left, &right, calib, canny, 8);
+    let workspace = marvin::engine::perception::workspace(cam_from_table);
+    let front_end = vision::front_end::slices::run_sliced(&left, &right, calib, &workspace, canny, 8);
     Pipeline { scene, left: l, right: r, front_end, settled, cams }
 }
 

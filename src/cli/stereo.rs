@@ -4,7 +4,7 @@ use super::edges::load_grey;
 use super::output::emit;
 use anyhow::{Context, bail};
 use image::{Rgb, RgbImage};
-use marvin::front_end::{FrontEnd, Geometry, run_with};
+use marvin::front_end::{FrontEnd, Geometry, Workspace, run_with};
 use serde::Serialize;
 use std::path::Path;
 use vision::{CannyParams, GreyImage};
@@ -82,9 +82,9 @@ pub fn run(
     }
     let fe = match geometry {
         Geometry::Calibrated(calib) if slices > 1 => {
-            vision::front_end::slices::run_sliced(&l, &r, calib, &CannyParams::default(), slices)
+            vision::front_end::slices::run_sliced(&l, &r, calib, &Workspace::default(), &CannyParams::default(), slices)
         }
-        _ => run_with(&l, &r, geometry, &CannyParams::default()),
+        _ => run_with(&l, &r, geometry, &Workspace::default(), &CannyParams::default()),
     };
     if json {
         let matches: Vec<MatchJson> = fe

@@ -189,7 +189,7 @@ fn visit(
     };
     record.base_from_gripper = Some(moved.base_from_gripper.to_isometry("base_from_gripper")?);
     let pair = Pair::from_capture(&client.capture()?, config.cameras.as_ref())?;
-    let fe = front_end(&pair);
+    let fe = front_end(&pair, None);
     match locate_flag(flag, &pair, &fe) {
         FlagSighting::Found { cam_from_flag, .. } => {
             record.cam_from_flag = Some(cam_from_flag);

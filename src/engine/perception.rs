@@ -86,9 +86,24 @@ fn decode_png(b64: &str) -> anyhow::Result<GreyImage> {
     GreyImage::new(w, h, img.into_raw()).ok_or_else(|| anyhow!("a {w}x{h} image with the wrong number of pixels"))
 }
 
-/// The front end on a pair, as shipped: 8 slices in parallel, joined.
-pub fn front_end(pair: &Pair) -> FrontEnd {
-    vision::front_end::slices::run_sliced(&pair.left, &pair.right, &pair.calib, &vision::CannyParams::default(), 8)
+/// The front end on a pair, as shipped: 8 slices in parallel, joined; searching no disparity
+/// under the table where `cam_from_table` places its top.
+pub fn front_end(pair: &Pair, cam_from_table: Option<&Isometry3<f64>>) -> FrontEnd {
+    let workspace = workspace(cam_from_table);
+    vision::front_end::slices::run_sliced(
+        &pair.left,
+        &pair.right,
+        &pair.calib,
+        &workspace,
+        &vision::CannyParams::default(),
+        8,
+    )
+}
+
+/// What the front end knows of the cell: the table's top, where `cam_from_table` places it (a
+/// frame whose plane z = 0 is the top, z up).
+pub fn workspace(cam_from_table: Option<&Isometry3<f64>>) -> vision::front_end::Workspace {
+    vision::front_end::Workspace { table: cam_from_table.map(vision::front_end::Table::from_cam_from_table) }
 }
 
 /// The front end's 3D lines as the matcher takes them.

@@ -139,7 +139,7 @@ pub fn run(
         let capture = client.capture()?;
         let pair = Pair::from_capture(&capture, config.cameras.as_ref())?;
         let capture_ms = clock.elapsed().as_secs_f64() * 1e3;
-        let fe = front_end(&pair);
+        let fe = front_end(&pair, cam_from_table.as_ref());
         let clock = Instant::now();
         let located = locate_parts(&models, &pair, &fe, cam_from_table.as_ref());
         let match_ms = clock.elapsed().as_secs_f64() * 1e3;

@@ -11,6 +11,7 @@
 //! - [`lines2d`]: strings cut into straight lines by recursive fit and segment.
 //! - [`lines3d`]: disparity fitted along each 2D line, its ends triangulated into 3D segments.
 //! - [`pipeline`]: the stages above run in order on one whole stereo pair ([`FrontEnd`]).
+//! - [`workspace`]: the disparities searched: the rig's workspace, and nothing under the table.
 //! - [`slices`]: the same cut into 8 horizontal slice pairs run in parallel, and the Joiner.
 //!
 //! Nothing here knows of the matcher: it takes the front end's output as it is.
@@ -25,5 +26,7 @@ pub mod pmf;
 pub mod rectify;
 pub mod slices;
 pub mod strings;
+pub mod workspace;
 
-pub use pipeline::{FrontEnd, Geometry, MIN_STRING, Stopwatch, WORKSPACE_DEPTH_M, disparity_range, run, run_with};
+pub use pipeline::{FrontEnd, Geometry, MIN_STRING, Stopwatch, run, run_with};
+pub use workspace::{Table, WORKSPACE_DEPTH_M, Workspace, disparity_range};

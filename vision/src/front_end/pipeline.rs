@@ -6,6 +6,7 @@ use super::lines3d::{Line3, Lines3dParams, complete_flat_lines, fit_lines3d, lin
 use super::pmf::{Match, PmfParams, pmf, right_figural_continuity};
 use super::rectify::{Rectification, Side};
 use super::strings::{EdgeString, link_strings};
+use super::workspace::Workspace;
 use crate::image::GreyImage;
 use mesh::StereoCalibration;
 use std::time::Instant;
@@ -43,16 +44,11 @@ fn canny_reusing(img: &GreyImage, params: &CannyParams) -> EdgeMap {
     out
 }
 
-/// The disparity range that depths from `near` to `far` metres (along the rectified axis) give.
-pub fn disparity_range(rect: &Rectification, near: f64, far: f64) -> (f32, f32) {
-    ((rect.f * rect.baseline / far) as f32, (rect.f * rect.baseline / near) as f32)
-}
-
 /// What the front end knows of the cameras.
 #[derive(Debug, Clone)]
 pub enum Geometry {
-    /// A calibrated verged pair: edges are rectified, disparities limited to depths of
-    /// [`WORKSPACE_DEPTH_M`].
+    /// A calibrated verged pair: edges are rectified, disparities limited to the
+    /// [`Workspace`]'s.
     Calibrated(Box<StereoCalibration>),
     /// Images already rectified (rows are epipolars), with the disparity range to search.
     Rectified { disparity_min: f32, disparity_max: f32 },
@@ -77,17 +73,26 @@ impl Stopwatch {
     }
 }
 
-/// Depths (metres, along the rectified axis) the calibrated front end searches: MARVIN's
-/// workspace, a table 0.6 to 1.6 m from the cameras.
-pub const WORKSPACE_DEPTH_M: (f64, f64) = (0.6, 1.6);
-
-/// The front end on a calibrated pair.
-pub fn run(left: &GreyImage, right: &GreyImage, calib: &StereoCalibration, canny_params: &CannyParams) -> FrontEnd {
-    run_with(left, right, &Geometry::Calibrated(Box::new(calib.clone())), canny_params)
+/// The front end on a calibrated pair, searching `workspace`.
+pub fn run(
+    left: &GreyImage,
+    right: &GreyImage,
+    calib: &StereoCalibration,
+    workspace: &Workspace,
+    canny_params: &CannyParams,
+) -> FrontEnd {
+    run_with(left, right, &Geometry::Calibrated(Box::new(calib.clone())), workspace, canny_params)
 }
 
-/// The front end: Canny on both images, strings of the left, rectification, PMF.
-pub fn run_with(left: &GreyImage, right: &GreyImage, geometry: &Geometry, canny_params: &CannyParams) -> FrontEnd {
+/// The front end: Canny on both images, strings of the left, rectification, PMF (searching
+/// `workspace`, for a calibrated pair).
+pub fn run_with(
+    left: &GreyImage,
+    right: &GreyImage,
+    geometry: &Geometry,
+    workspace: &Workspace,
+    canny_params: &CannyParams,
+) -> FrontEnd {
     let mut watch = Stopwatch::start();
     // Each camera's thresholds above its own noise.
     let (left_params, right_params) = (canny_params.for_image(left), canny_params.for_image(right));
@@ -99,19 +104,18 @@ pub fn run_with(left: &GreyImage, right: &GreyImage, geometry: &Geometry, canny_
         Geometry::Calibrated(calib) => Some(Rectification::new(calib)),
         Geometry::Rectified { .. } => None,
     };
-    let (left_rectified, right_rectified, (disparity_min, disparity_max)) = match (&rect, geometry) {
+    let (left_rectified, right_rectified, (disparity_min, disparity_max, floor)) = match (&rect, geometry) {
         (Some(rect), _) => {
-            let range = disparity_range(rect, WORKSPACE_DEPTH_M.0, WORKSPACE_DEPTH_M.1);
             let left = rect.rectify_edgels(Side::Left, &l.edgels);
-            (left, rect.rectify_edgels(Side::Right, &r.edgels), range)
+            (left, rect.rectify_edgels(Side::Right, &r.edgels), workspace.search(rect))
         }
         (None, Geometry::Rectified { disparity_min, disparity_max }) => {
-            (l.edgels.clone(), r.edgels.clone(), (*disparity_min, *disparity_max))
+            (l.edgels.clone(), r.edgels.clone(), (*disparity_min, *disparity_max, None))
         }
         (None, Geometry::Calibrated(_)) => unreachable!("a calibrated pair has a rectification"),
     };
     watch.lap("rectify");
-    let params = PmfParams { disparity_min, disparity_max, ..PmfParams::default() };
+    let params = PmfParams { disparity_min, disparity_max, floor, ..PmfParams::default() };
     let mut matches = pmf(&left_rectified, &right_rectified, &left_strings, &params);
     let right_strings = link_strings(&r, MIN_STRING);
     right_figural_continuity(

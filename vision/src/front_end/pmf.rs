@@ -21,6 +21,7 @@
 
 use super::canny::Edgel;
 use super::strings::EdgeString;
+use super::workspace::DisparityPlane;
 use serde::{Deserialize, Serialize};
 
 /// PMF's parameters; they travel to the workers in a control message.
@@ -29,6 +30,8 @@ pub struct PmfParams {
     /// Disparity range, rectified pixels (`x_left - x_right`).
     pub disparity_min: f32,
     pub disparity_max: f32,
+    /// No disparity under this one at the left edgel (the table's top, [`super::workspace`]).
+    pub floor: Option<DisparityPlane>,
     /// Orientation differences (radians) always accepted / always rejected.
     pub orientation_accept: f32,
     pub orientation_reject: f32,
@@ -88,6 +91,7 @@ impl Default for PmfParams {
         PmfParams {
             disparity_min: 0.0,
             disparity_max: 512.0,
+            floor: None,
             orientation_accept: 0.3,
             orientation_reject: 1.0,
             orientation_gradient_limit: 1.0,
@@ -246,7 +250,8 @@ pub enum Refusal {
 fn judge(l: &Edgel, ls: &Shape, r: &Edgel, rs: &Shape, p: &PmfParams) -> Result<f32, Refusal> {
     // Where the right edge crosses the left edgel's raster.
     let disparity = l.x - (r.x + (l.y - r.y) * rs.slope);
-    if disparity < p.disparity_min || disparity > p.disparity_max {
+    let under_floor = p.floor.is_some_and(|f| disparity < f.at(l.x, l.y));
+    if disparity < p.disparity_min || disparity > p.disparity_max || under_floor {
         return Err(Refusal::OutOfRange);
     }
     // Contrast sign across the raster.

@@ -21,10 +21,11 @@
 use super::canny::{CannyParams, CannyWorkspace, EdgeMap, Edgel};
 use super::lines2d::Line2;
 use super::lines3d::{Line3, Lines3dParams, complete_flat_lines, fit_lines3d, lines2d_split_at_depth_breaks};
-use super::pipeline::{FrontEnd, MIN_STRING, Stopwatch, WORKSPACE_DEPTH_M, disparity_range};
+use super::pipeline::{FrontEnd, MIN_STRING, Stopwatch};
 use super::pmf::{Match, PmfParams, pmf, right_figural_continuity};
 use super::rectify::{Rectification, Side};
 use super::strings::{EdgeString, link_strings};
+use super::workspace::Workspace;
 use crate::image::GreyImage;
 use mesh::StereoCalibration;
 use rayon::prelude::*;
@@ -196,7 +197,7 @@ pub fn run_slice(
     (left_bands, right_bands): (&[Band], &[Band]),
     width: usize,
     plan: &SlicePlan,
-    rect: &Rectification,
+    (rect, workspace): (&Rectification, &Workspace),
     own_band: usize,
 ) -> SliceResult {
     let mut watch = Stopwatch::start();
@@ -217,8 +218,8 @@ pub fn run_slice(
     let left_rect = rect.rectify_edgels(Side::Left, &left_edgels);
     let right_rect = rect.rectify_edgels(Side::Right, &right_edgels);
     watch.lap("rectify");
-    let (disparity_min, disparity_max) = disparity_range(rect, WORKSPACE_DEPTH_M.0, WORKSPACE_DEPTH_M.1);
-    let pmf_params = PmfParams { disparity_min, disparity_max, ..PmfParams::default() };
+    let (disparity_min, disparity_max, floor) = workspace.search(rect);
+    let pmf_params = PmfParams { disparity_min, disparity_max, floor, ..PmfParams::default() };
     let matches = pmf(&left_rect, &right_rect, &strings, &pmf_params);
     watch.lap("pmf");
     let lines2d = lines2d_split_at_depth_breaks(&left_rect, &strings, &matches);
@@ -248,6 +249,7 @@ pub fn run_sliced(
     left: &GreyImage,
     right: &GreyImage,
     calib: &StereoCalibration,
+    workspace: &Workspace,
     params: &CannyParams,
     n: usize,
 ) -> FrontEnd {
@@ -262,7 +264,7 @@ pub fn run_sliced(
     let slices: Vec<SliceResult> = plans
         .par_iter()
         .enumerate()
-        .map(|(k, p)| run_slice((&left_bands, &right_bands), left.width, p, &rect, k))
+        .map(|(k, p)| run_slice((&left_bands, &right_bands), left.width, p, (&rect, workspace), k))
         .collect();
     let slices_ms = clock.elapsed().as_secs_f64() * 1e3;
     let clock = Instant::now();

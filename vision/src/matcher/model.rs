@@ -392,28 +392,7 @@ pub(crate) fn eye_of(pose: &Isometry3<f64>) -> Point3<f64> {
 /// turned over on 0.15-0.16 of their wireframe: the places' floors now fall to others).
 pub(crate) const SEEN_SLACK: f64 = 0.1;
 
-/// The table's top in the `cam` frame, where the parts rest: its upward unit normal and the
-/// height of `cam`'s origin above it. Readings through it are refused ([`super::table`]).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct Table {
-    pub up: [f64; 3],
-    /// `cam`'s origin above the top, metres.
-    pub camera_height_m: f64,
-}
-
-impl Table {
-    /// The table whose top is the plane z = 0 of a frame `cam_from_table` places (z up).
-    pub fn from_cam_from_table(cam_from_table: &Isometry3<f64>) -> Table {
-        let up = cam_from_table.rotation * Vector3::z();
-        let top = Point3::from(cam_from_table.translation.vector);
-        Table { up: up.into(), camera_height_m: -up.dot(&top.coords) }
-    }
-
-    /// How high `x` (`cam`) lies above the top, metres (negative under it).
-    pub fn height_of(&self, x: &Point3<f64>) -> f64 {
-        Vector3::from(self.up).dot(&x.coords) + self.camera_height_m
-    }
-}
+pub use crate::front_end::workspace::Table;
 
 /// The matcher's tolerances and limits.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

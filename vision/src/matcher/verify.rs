@@ -328,14 +328,17 @@ pub fn image_support_shown(
 }
 
 /// The camera-facing wireframe of `model` at `pose` where it runs further than `apart_px` in
-/// the image from every camera-facing line of `other` at `other_pose`, none of `solids` hiding
-/// it: the share of that part that runs along edgels, and its length (pixels). What the image
-/// shows of a larger model beyond a smaller one it holds ([`super::superset`]).
+/// the image from every camera-facing line of `other` at `other_pose`, neither `model`'s own
+/// body nor any of `solids` hiding it, and off the edges `explained` holds (other objects'
+/// edgels say nothing of this one): the share of that part that runs along edgels, and its
+/// length (pixels). What the image shows of a larger model beyond a smaller one it holds
+/// ([`super::superset`]).
 pub fn image_support_beyond(
     (model, pose): (&MatcherModel, &Isometry3<f64>),
     (other, other_pose): (&MatcherModel, &Isometry3<f64>),
     ev: &ImageEvidence,
     solids: &[&super::occlusion::Solid],
+    explained: &Explained,
     apart_px: f64,
 ) -> (f64, f64) {
     let theirs: Vec<[Point2<f64>; 2]> = facing_lines(other, other_pose, ev.cam).map(|(_, _, ends)| ends).collect();
@@ -347,6 +350,7 @@ pub fn image_support_beyond(
         })
     };
     let (mut seen, mut beyond) = (0.0, 0.0);
+    let own = super::occlusion::Solid::new(model, pose);
     for (_, [a3, b3], [a, b]) in facing_lines(model, pose, ev.cam) {
         let len = (b - a).norm();
         if len < 2.0 * STEP_PX {
@@ -357,7 +361,11 @@ pub fn image_support_beyond(
         for s in 1..steps {
             let f = s as f64 / steps as f64;
             let q = a + (b - a) * f;
-            if near_theirs(&q) || solids.iter().any(|s| s.hides(&(a3 + (b3 - a3) * f))) {
+            let x3 = a3 + (b3 - a3) * f;
+            if near_theirs(&q) || solids.iter().any(|s| s.hides(&x3)) || own.hides(&x3) {
+                continue;
+            }
+            if explained.explains(&q, &dir) {
                 continue;
             }
             beyond += STEP_PX;

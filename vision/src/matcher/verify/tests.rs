@@ -141,6 +141,33 @@ fn a_part_read_into_a_located_ones_edges_is_explained_by_it() {
     assert_eq!(explained.share(&channel, &channel_pose, &cam), 1.0);
 }
 
+/// What the image shows of a channel beyond a bracket read into its corner: its third arm,
+/// along edgels where the channel was drawn, along none in an empty image, and nothing at all
+/// where another report's edges account for every edgel there (they say nothing of the
+/// channel).
+#[test]
+fn a_larger_model_beyond_a_smaller_one_is_judged_off_the_other_reports_edges() {
+    use nalgebra::{Point3, Translation3};
+    let (channel, bracket) =
+        (crate::matcher::fixtures::model("u_channel"), crate::matcher::fixtures::model("l_bracket"));
+    let cam = crate::matcher::fixtures::camera_at(Point3::new(0.0, -0.6, 0.6));
+    let place =
+        |x: f64| cam.cam_from_world() * Isometry3::from_parts(Translation3::new(x, 0.0, 0.0125), Default::default());
+    let (channel_pose, bracket_pose) = (place(0.0), place(-0.005));
+    let nothing = Explained::of([], &cam);
+    let beyond = |edges: &EdgeMap, explained: &Explained| {
+        let ev = ImageEvidence::new(&cam, edges, Vec::new());
+        image_support_beyond((&channel, &channel_pose), (&bracket, &bracket_pose), &ev, &[], explained, 3.0)
+    };
+    let (drawn, _) = drawn::model_edges(&channel, &channel_pose, &cam);
+    let (share, px) = beyond(&drawn, &nothing);
+    assert!(share > 0.9 && px > 20.0, "the channel drawn: {share:.2} of {px:.0} px");
+    let (share, px) = beyond(&EdgeMap::new(512, 512), &nothing);
+    assert!(share == 0.0 && px > 20.0, "an empty image: {share:.2} of {px:.0} px");
+    let another = Explained::of([(&channel, &channel_pose)], &cam);
+    assert_eq!(beyond(&drawn, &another), (0.0, 0.0), "all of it another report's edges");
+}
+
 /// The share of an image line along located edges, from the edges near its box, is the
 /// share every edge gives sample by sample: random short edges and lines over a small image,
 /// many of them near and along each other.
