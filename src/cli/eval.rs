@@ -15,7 +15,12 @@ pub enum EvalTarget {
     /// occluding boundary the true disparity is the nearer surface's), `matches_per_scene`,
     /// `endpoint_err_mm_median` and `_p90` (3D line ends from the nearest true feature edge),
     /// `coverage` (of visible feature-edge length in pieces >= 20 px long in the image, the part
-    /// a 3D line runs along within 3 mm and 10 deg), `timings_ms` (median per stage: with slices,
+    /// a 3D line runs along within 3 mm and 10 deg), `lines3d_off_edges` (share of the 3D lines
+    /// whose middle lies more than 5 mm from every true feature edge), `lines3d_off_edges_on_table`
+    /// (of all 3D lines, those off every edge with both ends within 5 mm of the true table top:
+    /// shadows' edges and the table's texture), `lines3d_on_table` (all with both ends there,
+    /// parts' bottom edges included), `table` (what placed it: `--hand-eye`, or none),
+    /// `timings_ms` (median per stage: with slices,
     /// each stage's processor time summed over the slices, then `slices` and `join` wall time),
     /// `unsettled_scenes` (scenes that did not come to rest, evaluated anyway), `left_edgels`
     /// (what became of the left edgels with a true disparity, as fractions: matched within 0.5

@@ -135,6 +135,9 @@ pub fn summarise(records: &[Record]) -> anyhow::Result<Value> {
         "endpoint_err_mm_p90": lines.endpoint_quantile(0.9),
         "coverage": lines.coverage(),
         "lines3d_per_scene": lines.endpoint_err_mm.len() as f64 / 2.0 / scenes,
+        "lines3d_off_edges": lines.off_edge_lines as f64 / (lines.endpoint_err_mm.len() as f64 / 2.0).max(1.0),
+        "lines3d_off_edges_on_table": lines.off_edge_on_table as f64 / (lines.endpoint_err_mm.len() as f64 / 2.0).max(1.0),
+        "lines3d_on_table": lines.on_table_lines as f64 / (lines.endpoint_err_mm.len() as f64 / 2.0).max(1.0),
         "arm": {
             "matches_per_scene": on_arm.evaluated as f64 / scenes,
             "disparity_within_0_5px": on_arm.within_fraction(),

@@ -187,6 +187,18 @@ pub struct LineStats {
     pub recovered_m: f64,
     /// 3D lines on the arm, left out of the above.
     pub arm_lines: usize,
+    /// 3D lines (not on the arm) whose middle lies further than [`OFF_EDGE_M`] from every true
+    /// feature edge: shadows' edges, the table's texture, silhouettes of curved nothing, or
+    /// stereo's mistakes; and of those, the ones with both ends within [`OFF_EDGE_M`] of the
+    /// true table top (a shadow or the texture on it).
+    #[serde(default)]
+    pub off_edge_lines: usize,
+    #[serde(default)]
+    pub off_edge_on_table: usize,
+    /// 3D lines with both ends within [`OFF_EDGE_M`] of the true table top, on a part's edge
+    /// (its bottom edges) or not.
+    #[serde(default)]
+    pub on_table_lines: usize,
 }
 
 impl LineStats {
@@ -195,6 +207,9 @@ impl LineStats {
         self.visible_m += other.visible_m;
         self.recovered_m += other.recovered_m;
         self.arm_lines += other.arm_lines;
+        self.off_edge_lines += other.off_edge_lines;
+        self.off_edge_on_table += other.off_edge_on_table;
+        self.on_table_lines += other.on_table_lines;
     }
 
     pub fn coverage(&self) -> f64 {
@@ -226,6 +241,9 @@ const RECOVERED_WITHIN_M: f64 = 0.003;
 const RECOVERED_ANGLE_DEG: f64 = 10.0;
 /// Visible runs shorter than this in the image do not count towards coverage.
 const MIN_VISIBLE_RUN_PX: f64 = 20.0;
+/// A 3D line whose middle is further than this from every true feature edge lies on none
+/// (metres; the right lines' ends are a millimetre or two off, `endpoint_err_mm`).
+pub const OFF_EDGE_M: f64 = 0.005;
 
 /// Compares 3D lines (in the `cam` frame vision was given) with the true feature edges of the
 /// scene's objects; `left_depth` is the true left camera's depth map, for visibility.
@@ -269,10 +287,19 @@ pub fn line_stats(
     // The lines in the true camera's frame (where the truth edges are).
     let lines: Vec<(Point3<f64>, Point3<f64>)> =
         lines.iter().map(|(a, b)| (vision_from_true.inverse() * a, vision_from_true.inverse() * b)).collect();
+    let nearest_edge =
+        |p: &Point3<f64>| edges.iter().map(|(ea, eb)| point_segment_distance(p, ea, eb)).fold(f64::MAX, f64::min);
+    // The world frame's z = 0 is the table's top.
+    let on_table = |p: &Point3<f64>| (truly.pinhole.world_from_cam * p).z.abs() <= OFF_EDGE_M;
     for (a, b) in &lines {
         for p in [a, b] {
-            let nearest = edges.iter().map(|(ea, eb)| point_segment_distance(p, ea, eb)).fold(f64::MAX, f64::min);
-            stats.endpoint_err_mm.push(nearest * 1e3);
+            stats.endpoint_err_mm.push(nearest_edge(p) * 1e3);
+        }
+        let flat = on_table(a) && on_table(b);
+        stats.on_table_lines += usize::from(flat);
+        if nearest_edge(&nalgebra::center(a, b)) > OFF_EDGE_M {
+            stats.off_edge_lines += 1;
+            stats.off_edge_on_table += usize::from(flat);
         }
     }
     let cos_max = RECOVERED_ANGLE_DEG.to_radians().cos();
