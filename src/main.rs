@@ -127,7 +127,9 @@ enum Command {
     /// Render a scene, run the front end and the model matcher; list the located objects with
     /// their errors against ground truth, the misses and the false reports. Or, with `--left L
     /// --right R --cameras FILE` and no world, any stereo pair: what was found, compared with a
-    /// truth file only if `--truth` gives one.
+    /// truth file only if `--truth` gives one. With no cell layout the matcher takes the table's
+    /// top from the pair's own 3D lines (JSON `table_top`; a note says where, or that none was
+    /// found).
     Locate {
         #[arg(required_unless_present = "left", conflicts_with_all = ["left", "right"])]
         world: Option<PathBuf>,

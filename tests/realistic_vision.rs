@@ -138,6 +138,13 @@ fn a_pair_from_files_is_located_through_measured_cameras() {
         truths.len()
     );
     assert!(right_ones + 2 >= truths.len(), "{right_ones} of {} parts found: {doc}", truths.len());
+    // With no cell layout, the matcher took the table's top from the 3D lines: the true top
+    // (the world's z = 0) at the workspace's centre lies within 3 mm of it.
+    let top = &doc["table_top"]["table"];
+    let up = nalgebra::Vector3::from_iterator(top["up"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()));
+    let centre = cam_from_world * nalgebra::Point3::origin();
+    let height = up.dot(&centre.coords) + top["camera_height_m"].as_f64().unwrap();
+    assert!(height.abs() < 0.003, "the true table's centre {:.1} mm off the top found", height * 1e3);
     assert_eq!(right_ones, located.len(), "a report not on a part of its model: {doc}");
 
     // `--truth scene.json` compares after the matcher has run: the same reports, each with the

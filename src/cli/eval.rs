@@ -182,6 +182,12 @@ pub enum EvalTarget {
         /// the first seed's scene.
         #[arg(long)]
         hand_eye: Option<PathBuf>,
+        /// The matcher takes the table's top from each scene's own 3D lines, as `marvin locate
+        /// --left --right` does where no cell layout places it, instead of a hand-eye
+        /// calibration; adds `table_from_images` (the share of scenes where a top was found,
+        /// and its error against the true top at the workspace's centre, judged afterwards).
+        #[arg(long, conflicts_with = "hand_eye")]
+        table_from_images: bool,
         #[command(flatten)]
         batch: BatchArgs,
     },
@@ -252,8 +258,9 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
                 super::eval_vision::Sources { cameras, hand_eye, deblur: !no_deblur, slices: slices as usize };
             super::eval_vision::eval(&batch.batch(world, scenes, seed, json)?, &sources)
         }
-        EvalTarget::Locate { world, scenes, seed, no_deblur, json, cameras, hand_eye, batch } => {
-            let sources = super::eval_locate::Sources { cameras, hand_eye, canny: canny_params(!no_deblur) };
+        EvalTarget::Locate { world, scenes, seed, no_deblur, json, cameras, hand_eye, table_from_images, batch } => {
+            let sources =
+                super::eval_locate::Sources { cameras, hand_eye, table_from_images, canny: canny_params(!no_deblur) };
             super::eval_locate::eval(&batch.batch(world, scenes, seed, json)?, &sources)
         }
         EvalTarget::Pick { world, trials, seed, json, batch } => {

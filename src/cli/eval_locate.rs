@@ -17,6 +17,8 @@ use std::path::PathBuf;
 pub struct Sources {
     pub cameras: Option<PathBuf>,
     pub hand_eye: Option<PathBuf>,
+    /// Each scene's table from its own 3D lines (`front_end::table_top`), not the hand-eye's.
+    pub table_from_images: bool,
     pub canny: vision::CannyParams,
 }
 
@@ -27,6 +29,17 @@ pub struct LocateScene {
     pub unsettled: bool,
     /// Wall time of the matcher: it differs from machine to machine and run to run.
     pub match_ms: f64,
+    /// With the table found in the scene's own lines: how far the true table's top at the
+    /// workspace's centre lies from the top found (mm, signed: above it positive) and the angle
+    /// between their normals (deg); `None` where no top was found.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub table_found: Option<TableFound>,
+}
+
+/// See [`LocateScene::table_found`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TableFound {
+    pub error: Option<[f64; 2]>,
 }
 
 /// `marvin eval locate`.
@@ -36,7 +49,11 @@ pub fn eval(b: &Batch, sources: &Sources) -> anyhow::Result<()> {
     let imaging = sim::imaging::Imaging::new(&scn.world);
     let cams = eval_cameras(&imaging, sources.cameras.as_deref())?;
     let calib = cams.vision.clone();
-    let table = super::table::cam_from_table(&b.world, &scn, &calib, sources.hand_eye.as_deref(), b.seed, b.json)?;
+    let table = if sources.table_from_images {
+        super::table::TableEstimate { cam_from_table: None, source: "each scene's own 3D lines".into() }
+    } else {
+        super::table::cam_from_table(&b.world, &scn, &calib, sources.hand_eye.as_deref(), b.seed, b.json)?
+    };
     let models = matcher_models(&scn.library, None);
     let symmetry: BTreeMap<String, Vec<Isometry3<f64>>> =
         scn.library.models.values().map(|m| (m.name.clone(), symmetries(m))).collect();
@@ -48,14 +65,27 @@ pub fn eval(b: &Batch, sources: &Sources) -> anyhow::Result<()> {
             p.front_end.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
         let clock = std::time::Instant::now();
         let evidence = vision::matcher::verify::ImageEvidence::of_pair(&calib, &p.front_end);
-        let located = vision::matcher::locate_all(&models, &lines, &params, Some(&evidence));
+        let (located, table_found) = if sources.table_from_images {
+            let top = vision::front_end::table_top::find(&p.front_end.lines3d);
+            let params = vision::matcher::MatchParams { table: top.as_ref().map(|t| t.table), ..params };
+            // The true top (the world's z = 0) in vision's frame, judged after the matcher ran.
+            let cam_from_world = calib.left.cam_from_world();
+            let error = top.map(|t| {
+                let centre = cam_from_world * nalgebra::Point3::origin();
+                let up = cam_from_world * nalgebra::Vector3::z();
+                [t.table.height_of(&centre) * 1e3, nalgebra::Vector3::from(t.table.up).angle(&up).to_degrees()]
+            });
+            (vision::matcher::locate_all(&models, &lines, &params, Some(&evidence)), Some(TableFound { error }))
+        } else {
+            (vision::matcher::locate_all(&models, &lines, &params, Some(&evidence)), None)
+        };
         let match_ms = clock.elapsed().as_secs_f64() * 1e3;
         let stats = locate_stats(&located, &p.scene, &scn.library, &p.cams, &p.left.depth, &symmetry);
         let line = format!(
             "located {}/{} visible objects, {} false of {} reports",
             stats.located, stats.eligible, stats.false_positives, stats.reports
         );
-        Ok((serde_json::to_value(LocateScene { stats, unsettled: !p.settled, match_ms })?, line))
+        Ok((serde_json::to_value(LocateScene { stats, unsettled: !p.settled, match_ms, table_found })?, line))
     };
     let records = runner.run(&shared, &scene)?;
     print_report(summarise(&records)?, b.shard, b.json)
@@ -67,6 +97,7 @@ pub fn summarise(records: &[Record]) -> anyhow::Result<Value> {
     let first = records.first().context("no scenes to summarise")?;
     let mut total = LocateStats::default();
     let (mut match_ms, mut unsettled, mut false_reports, mut missed) = (Vec::new(), 0, Vec::new(), Vec::new());
+    let mut tables: Vec<Option<[f64; 2]>> = Vec::new();
     for r in records {
         let scene: LocateScene = serde_json::from_value(r.scene.clone())
             .with_context(|| format!("seed {}: not an `eval locate` scene", r.seed))?;
@@ -75,6 +106,7 @@ pub fn summarise(records: &[Record]) -> anyhow::Result<Value> {
         match_ms.push(scene.match_ms);
         unsettled += usize::from(scene.unsettled);
         total.add(&scene.stats);
+        tables.extend(scene.table_found.map(|t| t.error));
     }
     let located_by_model: BTreeMap<String, f64> =
         total.by_model.iter().map(|(m, [e, l])| (m.clone(), *l as f64 / (*e).max(1) as f64)).collect();
@@ -96,6 +128,17 @@ pub fn summarise(records: &[Record]) -> anyhow::Result<Value> {
         "missed": missed,
         "version": first.version,
     });
+    if !tables.is_empty() {
+        let found: Vec<[f64; 2]> = tables.iter().flatten().copied().collect();
+        let heights: Vec<f64> = found.iter().map(|e| e[0].abs()).collect();
+        let angles: Vec<f64> = found.iter().map(|e| e[1]).collect();
+        report["table_from_images"] = json!({
+            "found_fraction": found.len() as f64 / tables.len() as f64,
+            "height_err_mm_median": quantile(&heights, 0.5),
+            "height_err_mm_max": heights.iter().copied().fold(0.0, f64::max),
+            "angle_deg_median": quantile(&angles, 0.5),
+        });
+    }
     marvin::eval::add_intervals(
         &mut report,
         &[

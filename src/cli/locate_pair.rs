@@ -73,9 +73,21 @@ pub fn run(args: PairArgs) -> anyhow::Result<()> {
     // Read before the matcher runs, so that a bad file costs nothing; used only after it.
     let truth = args.truth.as_deref().map(SceneTruth::load).transpose()?;
     let pair = Pair { left, right, calib };
-    // No table: nothing says where it is in these cameras' frame.
+    // No cell layout says where the table is in these cameras' frame: the matcher takes it from
+    // the scene's own 3D lines (the front end searched without it).
     let fe = front_end(&pair, None);
-    let located = locate_parts(&models, &pair, &fe, None);
+    let top = vision::front_end::table_top::find(&fe.lines3d);
+    let table_note = match &top {
+        Some(t) => format!(
+            "the table's top found on {} 3D lines ({:.0} mm of them), {:.1} mm below the left camera",
+            t.lines.len(),
+            t.length_m * 1e3,
+            t.table.camera_height_m * 1e3
+        ),
+        None => "no table's top found in the 3D lines: the matcher looks without one".to_string(),
+    };
+    notes.push(table_note);
+    let located = locate_parts(&models, &pair, &fe, top.as_ref().map(|t| t.table.cam_from_table()).as_ref());
     for note in &notes {
         eprintln!("note: {note}");
     }
@@ -93,7 +105,11 @@ pub fn run(args: PairArgs) -> anyhow::Result<()> {
         .collect();
     let compared = truth.as_ref().map(|t| t.compare(&library, &located));
     if args.json {
-        let mut out = serde_json::json!({ "located": rows, "lines3d": fe.lines3d.len(), "notes": notes });
+        let table = top
+            .as_ref()
+            .map(|t| serde_json::json!({ "table": t.table, "lines": t.lines.len(), "length_m": t.length_m }));
+        let mut out =
+            serde_json::json!({ "located": rows, "lines3d": fe.lines3d.len(), "table_top": table, "notes": notes });
         if let Some(c) = &compared {
             out["truth"] = c.to_json();
         }

@@ -12,6 +12,7 @@
 //! - [`lines3d`]: disparity fitted along each 2D line, its ends triangulated into 3D segments.
 //! - [`pipeline`]: the stages above run in order on one whole stereo pair ([`FrontEnd`]).
 //! - [`workspace`]: the disparities searched: the rig's workspace, and nothing under the table.
+//! - [`table_top`]: the table's top found in the 3D lines, where no cell layout places it.
 //! - [`slices`]: the same cut into 8 horizontal slice pairs run in parallel, and the Joiner.
 //!
 //! Nothing here knows of the matcher: it takes the front end's output as it is.
@@ -26,6 +27,7 @@ pub mod pmf;
 pub mod rectify;
 pub mod slices;
 pub mod strings;
+pub mod table_top;
 pub mod workspace;
 
 pub use pipeline::{FrontEnd, Geometry, MIN_STRING, Stopwatch, run, run_with};

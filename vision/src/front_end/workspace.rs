@@ -44,6 +44,15 @@ impl Table {
         Table { up: up.into(), camera_height_m: -up.dot(&top.coords) }
     }
 
+    /// A frame whose plane z = 0 is the top, z up (`cam_from_table`), its origin the foot of
+    /// the camera's perpendicular on the top.
+    pub fn cam_from_table(&self) -> Isometry3<f64> {
+        let up = Vector3::from(self.up);
+        let rotation = nalgebra::UnitQuaternion::rotation_between(&Vector3::z(), &up)
+            .unwrap_or_else(|| nalgebra::UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI));
+        Isometry3::from_parts((-self.camera_height_m * up).into(), rotation)
+    }
+
     /// How high `x` (`cam`) lies above the top, metres (negative under it).
     pub fn height_of(&self, x: &Point3<f64>) -> f64 {
         Vector3::from(self.up).dot(&x.coords) + self.camera_height_m
@@ -137,6 +146,20 @@ mod tests {
         let on_top = cam_from_world * Point3::new(0.0, 0.0, 0.0);
         let (xr, yr) = rectified_left(&rect, &on_top);
         assert!(rect.disparity_of(&on_top) > floor.at(xr, yr) as f64 + 1.0);
+    }
+
+    /// A table's frame gives back the table it was made from, and its origin lies on the top.
+    #[test]
+    fn a_tables_frame_gives_back_the_table() {
+        let (calib, _) = rig();
+        let table = Table::from_cam_from_table(&calib.left.world_from_cam.inverse());
+        let frame = table.cam_from_table();
+        let again = Table::from_cam_from_table(&frame);
+        assert!((Vector3::from(again.up) - Vector3::from(table.up)).norm() < 1e-12);
+        assert!((again.camera_height_m - table.camera_height_m).abs() < 1e-12);
+        assert!(table.height_of(&(frame * Point3::origin())).abs() < 1e-12);
+        let above = frame * Point3::new(0.03, -0.02, 0.01);
+        assert!((table.height_of(&above) - 0.01).abs() < 1e-12);
     }
 
     #[test]
