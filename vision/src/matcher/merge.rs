@@ -81,7 +81,7 @@ fn locate_all_in_pool(
                 kept[i] = rival;
             }
         }
-        super::superset::settle_larger(models, (scene, p), ev, RIVAL_MAX_SUPPORT, &mut kept, 0);
+        super::superset::settle_larger(models, (scene, p), ev, super::superset::MAX_SUPPORT, &mut kept, 0);
     }
     if let Some(ev) = image {
         let turns = super::shading::TurnedCandidates::default();
@@ -196,7 +196,7 @@ fn look_again_from_the_image(
             kept[i] = rival;
         }
     }
-    super::superset::settle_larger(models, (scene, p), ev, RIVAL_MAX_SUPPORT, kept, first_new);
+    super::superset::settle_larger(models, (scene, p), ev, super::superset::MAX_SUPPORT, kept, first_new);
     let mut i = first_new;
     while i < kept.len() {
         if super::shading::fits_light(models, ev, (light, RIVAL_MAX_SUPPORT), kept, i) {

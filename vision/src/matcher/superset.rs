@@ -37,6 +37,13 @@ const LARGER_BY: f64 = 1.1;
 const SHOWN_BEYOND: f64 = 0.4;
 /// ...over at least this length (pixels).
 const MIN_BEYOND_PX: f64 = 20.0;
+/// Reports with less than this share of their model's length along 3D lines are asked whether
+/// a larger model shows beyond them. It was the rivals' bar (0.3); a bracket read on a channel
+/// can rest on more (0.32 and 0.50 on realistic `widgets.toml` tuning seeds 278 and 267).
+/// `marvin eval locate` as for [`SHOWN_BEYOND`]: 0.45 96.10% / 9 false on seeds 101-300, 0.6
+/// 96.17% / 8, and every report (1.0) the same as 0.6; nothing else changed on any of the five
+/// sets.
+pub(crate) const MAX_SUPPORT: f64 = 0.6;
 /// How far (pixels) from the report's projected wireframe the larger model's counts as beyond it.
 const APART_PX: f64 = 3.0;
 
