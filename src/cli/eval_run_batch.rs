@@ -11,6 +11,7 @@ use super::session::{HandEye, failures, hand_eye, outcome_name, run_once};
 use anyhow::Context;
 use marvin::engine::run::{Cycle, RunConfig, Stop};
 use marvin::eval::batch::Record;
+use marvin::protocol::PickOutcomeKind;
 use nalgebra::Isometry3;
 use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
@@ -37,6 +38,12 @@ pub struct RunScene {
     pub cycles: usize,
     pub failures: BTreeMap<String, usize>,
     pub stopped_by: String,
+    /// Picks planned with the neighbours left out (every part blocked by another), and of
+    /// those placed.
+    #[serde(default)]
+    pub pushing_picks: usize,
+    #[serde(default)]
+    pub pushing_placed: usize,
     pub unsettled: bool,
     /// Wall times: they differ from machine to machine and run to run.
     pub cycle_s: Vec<f64>,
@@ -142,6 +149,14 @@ fn run_scene(
         cycles: r.cycles.len(),
         failures: failures(&r.cycles),
         stopped_by: stopped_by.into(),
+        pushing_picks: r.cycles.iter().filter(|c| c.pushing_neighbours).count(),
+        pushing_placed: r
+            .cycles
+            .iter()
+            .filter(|c| {
+                c.pushing_neighbours && matches!(&c.outcome, Some(Ok(p)) if p.outcome == Some(PickOutcomeKind::Placed))
+            })
+            .count(),
         unsettled: truth.unsettled.is_some(),
         cycle_s: r.cycles.iter().map(|c| c.cycle_s).collect(),
         vision_ms: r.cycles.iter().map(Cycle::vision_ms).collect(),
@@ -192,6 +207,8 @@ pub fn summarise(records: &[Record]) -> anyhow::Result<Value> {
         "vision_cycle_ms_median": marvin::eval::quantile(&vision_ms, 0.5),
         "failures": all_failures,
         "stopped_by": stops,
+        "pushing_picks": sum(|s| s.pushing_picks),
+        "pushing_placed": sum(|s| s.pushing_placed),
         "unsettled_scenes": scenes.iter().filter(|s| s.unsettled).count(),
         "version": first.version,
     });

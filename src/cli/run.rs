@@ -35,6 +35,7 @@ fn cycle_json(c: &Cycle) -> Value {
         "outcome": outcome_name(c),
         "detail": c.outcome.as_ref().and_then(|o| o.as_ref().ok()).and_then(|r| r.detail.clone()),
         "unplannable": c.unplannable,
+        "pushing_neighbours": c.pushing_neighbours,
         "vision_ms": c.vision_ms(),
         "cycle_s": c.cycle_s,
     })

@@ -45,6 +45,8 @@ pub struct Cycle {
     pub outcome: Option<Result<PickReply, String>>,
     /// Candidates whose pick could not be planned before one could.
     pub unplannable: usize,
+    /// The pick was planned with the neighbours left out: every part was blocked by another.
+    pub pushing_neighbours: bool,
     /// Stage times of this cycle's vision, ms: the front end's (processor time summed over the
     /// slices, and wall time of `slices` and `join`), `match`, `capture` (request and decode).
     pub timings_ms: Vec<(&'static str, f64)>,
@@ -65,6 +67,7 @@ impl Cycle {
             chosen: None,
             outcome: None,
             unplannable: 0,
+            pushing_neighbours: false,
             timings_ms,
             cycle_s: 0.0,
             joints: Default::default(),
@@ -162,16 +165,27 @@ pub fn run(
         // Parts that rest go first; those that only may rest wait until nothing else is left.
         let mut order: Vec<usize> = order.into_iter().filter(|&i| may_rest[i]).collect();
         order.sort_by_key(|&i| !resting[i]);
-        for i in order {
-            let spec = pick_spec(&cycle.located, i, &bin);
+        // Each part with its neighbours avoided; where every one is blocked by another (parts
+        // packed so that each one's fingers would touch the next), the first that plans with
+        // the neighbours left out, its fingers pushing them aside as they close.
+        let tries = order.iter().map(|&i| (i, true)).chain(order.iter().map(|&i| (i, false)));
+        for (i, avoiding) in tries {
+            if !avoiding && cycle.unplannable < order.len() {
+                break;
+            }
+            let mut spec = pick_spec(&cycle.located, i, &bin);
+            if !avoiding {
+                spec.obstacles.clear();
+            }
             match client.pick(PickSpec { plan_only: true, ..spec.clone() }) {
                 Err(e) if e.wire().is_some() => {
-                    cycle.unplannable += 1;
+                    cycle.unplannable += usize::from(avoiding);
                     continue;
                 }
                 Err(e) => return Err(e.into()),
                 Ok(_) => {}
             }
+            cycle.pushing_neighbours = !avoiding;
             before_pick(client, k, &cycle.located[i])?;
             cycle.chosen = Some(i);
             let reply = client.pick(spec).map_err(|e| e.to_string());
