@@ -10,6 +10,8 @@
 //! seeds 101-120 (0.671 before) and 0.942 here (0.725 before), with no false report; the
 //! limit below guards what it has (README, "The realistic cell").
 
+mod common;
+
 use std::process::Command;
 
 const CAMERAS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/camera-calib/tests/fixtures/seed3_cameras.json");
@@ -61,13 +63,9 @@ fn the_matcher_locates_parts_in_the_realistic_cell() {
 /// pick goes to the wrong model, and at most two parts are left.
 #[test]
 fn the_main_job_clears_the_realistic_table() {
-    let out = Command::new(env!("CARGO_BIN_EXE_marvin"))
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .args(["run", "worlds/widgets.toml", "--seed", "310011", "--json"])
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let doc = common::ok(
+        common::marvin().args(["run", "worlds/widgets.toml", "--seed", "310011", "--json"]).output().unwrap(),
+    );
     let truth = &doc["truth"];
     let (on_table, cleared) = (truth["on_table_at_start"].as_u64().unwrap(), truth["in_bin_at_end"].as_u64().unwrap());
     eprintln!("{cleared} of {on_table} cleared; calibration {}", doc["calibration_error"]);
@@ -82,13 +80,8 @@ fn the_main_job_clears_the_realistic_table() {
 /// one of them by such a pick, and none goes to the wrong model.
 #[test]
 fn parts_that_block_each_other_are_picked_pushing_the_neighbours_aside() {
-    let out = Command::new(env!("CARGO_BIN_EXE_marvin"))
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .args(["run", "worlds/widgets.toml", "--seed", "112", "--json"])
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let doc =
+        common::ok(common::marvin().args(["run", "worlds/widgets.toml", "--seed", "112", "--json"]).output().unwrap());
     let truth = &doc["truth"];
     assert_eq!(truth["wrong_model_picks"].as_u64(), Some(0), "{truth}");
     assert_eq!(truth["in_bin_at_end"], truth["on_table_at_start"], "{truth}");

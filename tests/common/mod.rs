@@ -1,5 +1,6 @@
-//! What the batch tests (`tests/batch.rs`, `tests/slurm.rs`) share: the `marvin` binary run from
-//! the repository, a scratch folder, and the figures of a summary.
+//! What the integration tests share (`tests/batch.rs`, `tests/slurm.rs`, `tests/deploy.rs`,
+//! `tests/realistic_vision.rs`): the `marvin` binary run from the repository, a scratch folder,
+//! and the figures of a summary.
 
 #![allow(dead_code)] // each test binary uses its own share of these
 
