@@ -10,8 +10,8 @@
 
 use super::model::{Located, MatchParams, MatcherModel, Seg};
 use super::occlusion::Solid;
-use super::verify::{ImageEvidence, image_support_beyond};
-use nalgebra::Isometry3;
+use super::verify::{Beyond, ImageEvidence, image_support_beyond};
+use nalgebra::{Isometry3, Point3, Vector3};
 use std::collections::HashMap;
 use std::sync::{Mutex, OnceLock};
 
@@ -89,6 +89,42 @@ pub(crate) enum Larger {
     /// A larger model shows, but no reading of it refits (through the table, or on no 3D line):
     /// the report is not what lies there.
     Unfitted,
+    /// Where the larger model's extra edges would be, the image shows less than
+    /// [`MIN_BEYOND_PX`] of them: other objects hide them or they fall outside the image, and
+    /// nothing located fills the room they would take. The report cannot be told from the
+    /// larger model and is not made. (On tuning seeds: L-brackets read on U-channels cut by the
+    /// image's border or with their third arm under a neighbour; where a right bracket's
+    /// channel would have its arm inside a located neighbour, the bracket stands.)
+    KeptFromView,
+}
+
+/// How deep (metres) inside another object or under the table a point of the larger model
+/// must lie for that model to have no room there: parts rest on each other and on the table,
+/// and their located poses are a millimetre or two off.
+const ROOM_M: f64 = 0.003;
+
+/// A located object's closed surface (`cam` frame), for telling whether a point lies well
+/// inside it.
+struct Body {
+    triangles: Vec<[Point3<f64>; 3]>,
+    centre: Point3<f64>,
+    radius: f64,
+}
+
+impl Body {
+    fn new(model: &MatcherModel, pose: &Isometry3<f64>) -> Body {
+        let (centre, radius) = model.bounding_sphere();
+        Body { triangles: model.triangles.iter().map(|t| t.map(|q| pose * q)).collect(), centre: pose * centre, radius }
+    }
+
+    /// Whether `x` lies inside the surface, [`ROOM_M`] or more from it along each axis.
+    fn holds_deep(&self, x: &Point3<f64>) -> bool {
+        if (x - self.centre).norm() > self.radius {
+            return false;
+        }
+        let steps = [Vector3::x(), Vector3::y(), Vector3::z()].into_iter().flat_map(|e| [e * ROOM_M, -e * ROOM_M]);
+        std::iter::once(Vector3::zeros()).chain(steps).all(|d| mesh::trimesh::encloses(&self.triangles, &(x + d)))
+    }
 }
 
 /// [`Larger`] for report `i` of `kept`.
@@ -118,18 +154,34 @@ pub(crate) fn larger_reading(
             .filter_map(|(_, l)| models.iter().find(|m| m.name == l.model).map(|m| (m, &l.cam_from_model))),
         ev.cam,
     );
-    let shown: Vec<(&MatcherModel, Isometry3<f64>)> = models
+    let others: Vec<Body> = kept
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| *k != i)
+        .filter_map(|(_, l)| models.iter().find(|m| m.name == l.model).map(|m| Body::new(m, &l.cam_from_model)))
+        .collect();
+    let taken =
+        |x: &Point3<f64>| p.table.is_some_and(|t| t.height_of(x) < -ROOM_M) || others.iter().any(|b| b.holds_deep(x));
+    let beyond: Vec<(&MatcherModel, Isometry3<f64>, Beyond)> = models
         .iter()
         .filter(|m| m.name != own.name)
         .flat_map(|m| holding_poses(own, m, p).into_iter().map(move |t| (m, r.cam_from_model * t)))
-        .filter(|(m, pose)| {
-            let (share, px) =
-                image_support_beyond((m, pose), (own, &r.cam_from_model), ev, &solids, &explained, APART_PX);
-            share >= SHOWN_BEYOND && px >= MIN_BEYOND_PX
+        .map(|(m, pose)| {
+            let b =
+                image_support_beyond((m, &pose), (own, &r.cam_from_model), ev, &solids, &explained, APART_PX, &taken);
+            (m, pose, b)
         })
         .collect();
+    let shown: Vec<(&MatcherModel, Isometry3<f64>)> = beyond
+        .iter()
+        .filter(|(_, _, b)| b.share >= SHOWN_BEYOND && b.px >= MIN_BEYOND_PX)
+        .map(|(m, pose, _)| (*m, *pose))
+        .collect();
     if shown.is_empty() {
-        return Larger::No;
+        let kept_from_view = beyond.iter().any(|(_, _, b)| {
+            b.px < MIN_BEYOND_PX && b.kept_from_view_px >= MIN_BEYOND_PX && b.taken_px < MIN_BEYOND_PX
+        });
+        return if kept_from_view { Larger::KeptFromView } else { Larger::No };
     }
     let turns = super::shading::TurnedCandidates::default();
     shown
@@ -157,7 +209,7 @@ pub(crate) fn settle_larger(
                 kept[i] = l;
                 i += 1;
             }
-            Larger::Unfitted => {
+            Larger::Unfitted | Larger::KeptFromView => {
                 kept.remove(i);
             }
         }
@@ -188,5 +240,20 @@ mod tests {
             assert!((offset.norm() - 0.005).abs() < 0.001, "{offset:?}");
         }
         assert!(holding_poses(&channel, &bracket, &p).is_empty(), "a bracket is too small to hold a channel");
+    }
+
+    /// A block's body (60 mm along x) holds a point deep inside it, and not one within
+    /// [`ROOM_M`] of a face or outside it, wherever the block stands.
+    #[test]
+    fn a_body_holds_only_points_well_inside_it() {
+        let block = model("block");
+        let pose = Isometry3::new(Vector3::new(0.05, -0.02, 0.9), Vector3::new(0.3, -0.2, 1.1));
+        let body = Body::new(&block, &pose);
+        let (centre, _) = block.bounding_sphere();
+        let at = |dx: f64| pose * (centre + Vector3::new(dx, 0.0, 0.0));
+        assert!(body.holds_deep(&at(0.0)), "its centre");
+        assert!(body.holds_deep(&at(0.025)), "5 mm inside its end");
+        assert!(!body.holds_deep(&at(0.029)), "1 mm inside its end");
+        assert!(!body.holds_deep(&at(0.035)), "5 mm beyond its end");
     }
 }

@@ -331,7 +331,8 @@ pub fn image_support_shown(
 /// the image from every camera-facing line of `other` at `other_pose`, neither `model`'s own
 /// body nor any of `solids` hiding it, and off the edges `explained` holds (other objects'
 /// edgels say nothing of this one): the share of that part that runs along edgels, and its
-/// length (pixels). What the image shows of a larger model beyond a smaller one it holds
+/// length (pixels); the length that `solids` or the image's border kept from view; and the
+/// length whose points lie where `taken` says something else is ([`Beyond`]). What the image shows of a larger model beyond a smaller one it holds
 /// ([`super::superset`]).
 pub fn image_support_beyond(
     (model, pose): (&MatcherModel, &Isometry3<f64>),
@@ -340,7 +341,8 @@ pub fn image_support_beyond(
     solids: &[&super::occlusion::Solid],
     explained: &Explained,
     apart_px: f64,
-) -> (f64, f64) {
+    taken: &dyn Fn(&nalgebra::Point3<f64>) -> bool,
+) -> Beyond {
     let theirs: Vec<[Point2<f64>; 2]> = facing_lines(other, other_pose, ev.cam).map(|(_, _, ends)| ends).collect();
     let near_theirs = |q: &Point2<f64>| {
         theirs.iter().any(|[a, b]| {
@@ -349,8 +351,10 @@ pub fn image_support_beyond(
             (a + ab * t - q).norm() <= apart_px
         })
     };
-    let (mut seen, mut beyond) = (0.0, 0.0);
+    let (mut seen, mut beyond, mut kept_from_view, mut taken_px) = (0.0, 0.0, 0.0, 0.0);
     let own = super::occlusion::Solid::new(model, pose);
+    let in_frame =
+        |q: &Point2<f64>| (0.0..ev.edges.width as f64).contains(&q.x) && (0.0..ev.edges.height as f64).contains(&q.y);
     for (_, [a3, b3], [a, b]) in facing_lines(model, pose, ev.cam) {
         let len = (b - a).norm();
         if len < 2.0 * STEP_PX {
@@ -362,7 +366,17 @@ pub fn image_support_beyond(
             let f = s as f64 / steps as f64;
             let q = a + (b - a) * f;
             let x3 = a3 + (b3 - a3) * f;
-            if near_theirs(&q) || solids.iter().any(|s| s.hides(&x3)) || own.hides(&x3) {
+            if near_theirs(&q) {
+                continue;
+            }
+            if taken(&x3) {
+                taken_px += STEP_PX;
+            }
+            if own.hides(&x3) {
+                continue;
+            }
+            if !in_frame(&q) || solids.iter().any(|s| s.hides(&x3)) {
+                kept_from_view += STEP_PX;
                 continue;
             }
             if explained.explains(&q, &dir) {
@@ -374,7 +388,27 @@ pub fn image_support_beyond(
             }
         }
     }
-    (if beyond > 0.0 { seen / beyond } else { 0.0 }, beyond)
+    Beyond {
+        share: if beyond > 0.0 { seen / beyond } else { 0.0 },
+        px: beyond,
+        kept_from_view_px: kept_from_view,
+        taken_px,
+    }
+}
+
+/// What [`image_support_beyond`] found of a larger model beyond a smaller one.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Beyond {
+    /// The share of the length looked at that runs along edgels.
+    pub share: f64,
+    /// The length looked at (pixels).
+    pub px: f64,
+    /// The length that other objects' bodies hide or that falls outside the image (pixels):
+    /// what the image could not show even if the larger model lay there.
+    pub kept_from_view_px: f64,
+    /// The length (pixels, hidden or not) whose points `taken` says something else fills: where
+    /// the larger model could not lie.
+    pub taken_px: f64,
 }
 
 /// The image edges of the objects located so far (their camera-facing wireframes, projected):

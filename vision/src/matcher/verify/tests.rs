@@ -157,15 +157,36 @@ fn a_larger_model_beyond_a_smaller_one_is_judged_off_the_other_reports_edges() {
     let nothing = Explained::of([], &cam);
     let beyond = |edges: &EdgeMap, explained: &Explained| {
         let ev = ImageEvidence::new(&cam, edges, Vec::new());
-        image_support_beyond((&channel, &channel_pose), (&bracket, &bracket_pose), &ev, &[], explained, 3.0)
+        image_support_beyond((&channel, &channel_pose), (&bracket, &bracket_pose), &ev, &[], explained, 3.0, &|_| false)
     };
     let (drawn, _) = drawn::model_edges(&channel, &channel_pose, &cam);
-    let (share, px) = beyond(&drawn, &nothing);
+    let Beyond { share, px, kept_from_view_px, .. } = beyond(&drawn, &nothing);
     assert!(share > 0.9 && px > 20.0, "the channel drawn: {share:.2} of {px:.0} px");
-    let (share, px) = beyond(&EdgeMap::new(512, 512), &nothing);
+    assert_eq!(kept_from_view_px, 0.0, "nothing hides it and it is all in the image");
+    let Beyond { share, px, .. } = beyond(&EdgeMap::new(512, 512), &nothing);
     assert!(share == 0.0 && px > 20.0, "an empty image: {share:.2} of {px:.0} px");
     let another = Explained::of([(&channel, &channel_pose)], &cam);
-    assert_eq!(beyond(&drawn, &another), (0.0, 0.0), "all of it another report's edges");
+    let Beyond { share, px, .. } = beyond(&drawn, &another);
+    assert_eq!((share, px), (0.0, 0.0), "all of it another report's edges");
+    // The same image cropped to its left half: the channel lies across its right border, and
+    // what falls outside is kept from view, not counted as unseen.
+    let (full, _) = drawn::model_edges(&channel, &channel_pose, &cam);
+    let cut_at = cam.project_cam(&(channel_pose * Point3::new(0.0, 0.0, 0.0))).unwrap().x.floor() as usize;
+    let mut cropped = EdgeMap::new(cut_at, 512);
+    for (i, e) in full.edgels.iter().enumerate() {
+        let (x, y) = full.pixel_of(i as u32);
+        if x < cut_at {
+            cropped.push(y * cut_at + x, *e);
+        }
+    }
+    let whole = beyond(&drawn, &nothing);
+    let cut = beyond(&cropped, &nothing);
+    assert!(cut.kept_from_view_px > 20.0, "the right half out of view: {cut:?}");
+    assert!(
+        (cut.px + cut.kept_from_view_px - whole.px).abs() < 1e-9,
+        "all of it looked at or out of view: {cut:?} {whole:?}"
+    );
+    assert!(cut.px == 0.0 || cut.share > 0.9, "what is in view is drawn: {cut:?}");
 }
 
 /// The share of an image line along located edges, from the edges near its box, is the
