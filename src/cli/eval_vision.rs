@@ -63,11 +63,18 @@ pub fn eval(b: &Batch, sources: &Sources) -> anyhow::Result<()> {
         let (l, r) = imaging.render_stereo(&scene.render_scene(&scn.library, &imaging), s);
         let left = vision::GreyImage::new(l.width, l.height, l.image.clone()).expect("a rendered frame is whole");
         let right = vision::GreyImage::new(r.width, r.height, r.image.clone()).expect("a rendered frame is whole");
-        let fe = if sources.slices > 1 {
+        let mut fe = if sources.slices > 1 {
             vision::front_end::slices::run_sliced(&left, &right, &cams.vision, &workspace, &params, sources.slices)
         } else {
             marvin::front_end::run(&left, &right, &cams.vision, &workspace, &params)
         };
+        // Without a hand-eye calibration the table's top is taken from the 3D lines, as
+        // `marvin locate --left --right` takes it, to set the shadows and texture apart.
+        if workspace.table.is_none()
+            && let Some(top) = vision::front_end::table_top::find(&fe.lines3d)
+        {
+            vision::front_end::soft_edges::set_apart(&mut fe, &top.table);
+        }
         let truth = TruthScene::new(scene.world_meshes(&scn.library).map(|(_, m)| m));
         let arm = ArmMask::from_ids(l.width, l.height, &l.ids);
         let (disparity, on_arm) = disparity_stats(&fe, &truth, &cams, &arm);
@@ -138,6 +145,12 @@ pub fn summarise(records: &[Record]) -> anyhow::Result<Value> {
         "lines3d_off_edges": lines.off_edge_lines as f64 / (lines.endpoint_err_mm.len() as f64 / 2.0).max(1.0),
         "lines3d_off_edges_on_table": lines.off_edge_on_table as f64 / (lines.endpoint_err_mm.len() as f64 / 2.0).max(1.0),
         "lines3d_on_table": lines.on_table_lines as f64 / (lines.endpoint_err_mm.len() as f64 / 2.0).max(1.0),
+        "set_apart": {
+            "per_scene": lines.set_apart_lines as f64 / scenes,
+            "off_edges": lines.set_apart_off_edges as f64 / (lines.set_apart_lines as f64).max(1.0),
+            "of_off_edges_on_table": lines.set_apart_off_edges as f64
+                / ((lines.set_apart_off_edges + lines.off_edge_on_table) as f64).max(1.0),
+        },
         "arm": {
             "matches_per_scene": on_arm.evaluated as f64 / scenes,
             "disparity_within_0_5px": on_arm.within_fraction(),

@@ -75,7 +75,7 @@ pub fn run(args: PairArgs) -> anyhow::Result<()> {
     let pair = Pair { left, right, calib };
     // No cell layout says where the table is in these cameras' frame: the matcher takes it from
     // the scene's own 3D lines (the front end searched without it).
-    let fe = front_end(&pair, None);
+    let mut fe = front_end(&pair, None);
     let top = vision::front_end::table_top::find(&fe.lines3d);
     let table_note = match &top {
         Some(t) => format!(
@@ -87,6 +87,11 @@ pub fn run(args: PairArgs) -> anyhow::Result<()> {
         None => "no table's top found in the 3D lines: the matcher looks without one".to_string(),
     };
     notes.push(table_note);
+    // With the top known, the lines on it with soft edges (shadows, texture) are set apart.
+    if let Some(t) = &top {
+        vision::front_end::soft_edges::set_apart(&mut fe, &t.table);
+        notes.push(format!("{} 3D lines on the table's top set apart as shadows or texture", fe.set_apart.len()));
+    }
     let located = locate_parts(&models, &pair, &fe, top.as_ref().map(|t| t.table.cam_from_table()).as_ref());
     for note in &notes {
         eprintln!("note: {note}");
@@ -108,8 +113,7 @@ pub fn run(args: PairArgs) -> anyhow::Result<()> {
         let table = top
             .as_ref()
             .map(|t| serde_json::json!({ "table": t.table, "lines": t.lines.len(), "length_m": t.length_m }));
-        let mut out =
-            serde_json::json!({ "located": rows, "lines3d": fe.lines3d.len(), "table_top": table, "notes": notes });
+        let mut out = serde_json::json!({ "located": rows, "lines3d": fe.lines3d.len(), "lines3d_set_apart": fe.set_apart.len(), "table_top": table, "notes": notes });
         if let Some(c) = &compared {
             out["truth"] = c.to_json();
         }

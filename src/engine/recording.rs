@@ -248,6 +248,10 @@ mod with_rerun {
             let lines3d: Vec<Vec<[f32; 3]>> =
                 fe.lines3d.iter().map(|l| points(&base_from_cam, [l.start(), l.end()])).collect();
             self.rec.log("cell/lines3d", &rerun::LineStrips3D::new(lines3d).with_colors([0xFF8800FF]))?;
+            // The lines believed shadows or texture, apart and dim, so that they can be checked.
+            let set_apart: Vec<Vec<[f32; 3]>> =
+                fe.set_apart.iter().map(|l| points(&base_from_cam, [l.start(), l.end()])).collect();
+            self.rec.log("cell/lines3d_set_apart", &rerun::LineStrips3D::new(set_apart).with_colors([0x8080FFFF]))?;
             Ok(())
         }
 

@@ -199,6 +199,12 @@ pub struct LineStats {
     /// (its bottom edges) or not.
     #[serde(default)]
     pub on_table_lines: usize,
+    /// 3D lines the front end set apart as shadows or texture (`FrontEnd::set_apart`, not on
+    /// the arm; none of the above counts them), and of those, the ones on no true feature edge.
+    #[serde(default)]
+    pub set_apart_lines: usize,
+    #[serde(default)]
+    pub set_apart_off_edges: usize,
 }
 
 impl LineStats {
@@ -210,6 +216,8 @@ impl LineStats {
         self.off_edge_lines += other.off_edge_lines;
         self.off_edge_on_table += other.off_edge_on_table;
         self.on_table_lines += other.on_table_lines;
+        self.set_apart_lines += other.set_apart_lines;
+        self.set_apart_off_edges += other.set_apart_off_edges;
     }
 
     pub fn coverage(&self) -> f64 {
@@ -301,6 +309,11 @@ pub fn line_stats(
             stats.off_edge_lines += 1;
             stats.off_edge_on_table += usize::from(flat);
         }
+    }
+    for l in fe.set_apart.iter().filter(|l| !on_arm(&l.start(), &l.end())) {
+        let middle = vision_from_true.inverse() * nalgebra::center(&l.start(), &l.end());
+        stats.set_apart_lines += 1;
+        stats.set_apart_off_edges += usize::from(nearest_edge(&middle) > OFF_EDGE_M);
     }
     let cos_max = RECOVERED_ANGLE_DEG.to_radians().cos();
     for (ea, eb) in &edges {

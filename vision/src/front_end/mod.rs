@@ -13,6 +13,7 @@
 //! - [`pipeline`]: the stages above run in order on one whole stereo pair ([`FrontEnd`]).
 //! - [`workspace`]: the disparities searched: the rig's workspace, and nothing under the table.
 //! - [`table_top`]: the table's top found in the 3D lines, where no cell layout places it.
+//! - [`soft_edges`]: 3D lines on the table with soft edges (shadows, texture) set apart.
 //! - [`slices`]: the same cut into 8 horizontal slice pairs run in parallel, and the Joiner.
 //!
 //! Nothing here knows of the matcher: it takes the front end's output as it is.
@@ -26,6 +27,7 @@ pub mod pipeline;
 pub mod pmf;
 pub mod rectify;
 pub mod slices;
+pub mod soft_edges;
 pub mod strings;
 pub mod table_top;
 pub mod workspace;

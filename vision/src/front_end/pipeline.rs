@@ -27,6 +27,9 @@ pub struct FrontEnd {
     pub lines2d: Vec<Line2>,
     /// 3D lines in the `cam` frame (none without a calibration).
     pub lines3d: Vec<Line3>,
+    /// 3D lines believed to be shadows or the table's texture, set apart from `lines3d`
+    /// ([`super::soft_edges`]; none until the table's top is known).
+    pub set_apart: Vec<Line3>,
     /// The rectification used (none for images given already rectified).
     pub rect: Option<Rectification>,
     pub timings_ms: Vec<(&'static str, f64)>,
@@ -85,7 +88,8 @@ pub fn run(
 }
 
 /// The front end: Canny on both images, strings of the left, rectification, PMF (searching
-/// `workspace`, for a calibrated pair).
+/// `workspace`, for a calibrated pair), 2D and 3D lines; where `workspace` knows the table,
+/// the lines on it with soft edges set apart ([`super::soft_edges`]).
 pub fn run_with(
     left: &GreyImage,
     right: &GreyImage,
@@ -146,7 +150,7 @@ pub fn run_with(
         }
         matches.retain(|m| on_line[m.left as usize]);
     }
-    FrontEnd {
+    let mut fe = FrontEnd {
         left: l,
         right: r,
         left_strings,
@@ -155,9 +159,14 @@ pub fn run_with(
         matches,
         lines2d,
         lines3d,
+        set_apart: Vec::new(),
         rect,
         timings_ms: watch.laps,
+    };
+    if let (Some(table), Some(_)) = (&workspace.table, &fe.rect) {
+        super::soft_edges::set_apart(&mut fe, table);
     }
+    fe
 }
 
 impl FrontEnd {
@@ -186,6 +195,7 @@ impl FrontEnd {
             matches: Vec::new(),
             lines2d: Vec::new(),
             lines3d: Vec::new(),
+            set_apart: Vec::new(),
             rect,
             timings_ms: Vec::new(),
         }
