@@ -73,7 +73,7 @@ pub fn eval(b: &Batch, sources: &Sources) -> anyhow::Result<()> {
         if workspace.table.is_none()
             && let Some(top) = vision::front_end::table_top::find(&fe.lines3d)
         {
-            vision::front_end::soft_edges::set_apart(&mut fe, &top.table);
+            fe.set_apart_soft_lines(&top.table);
         }
         let truth = TruthScene::new(scene.world_meshes(&scn.library).map(|(_, m)| m));
         let arm = ArmMask::from_ids(l.width, l.height, &l.ids);

@@ -89,7 +89,7 @@ pub fn run(args: PairArgs) -> anyhow::Result<()> {
     notes.push(table_note);
     // With the top known, the lines on it with soft edges (shadows, texture) are set apart.
     if let Some(t) = &top {
-        vision::front_end::soft_edges::set_apart(&mut fe, &t.table);
+        fe.set_apart_soft_lines(&t.table);
         notes.push(format!("{} 3D lines on the table's top set apart as shadows or texture", fe.set_apart.len()));
     }
     let located = locate_parts(&models, &pair, &fe, top.as_ref().map(|t| t.table.cam_from_table()).as_ref());

@@ -164,7 +164,7 @@ pub fn run_with(
         timings_ms: watch.laps,
     };
     if let (Some(table), Some(_)) = (&workspace.table, &fe.rect) {
-        super::soft_edges::set_apart(&mut fe, table);
+        fe.set_apart_soft_lines(table);
     }
     fe
 }
@@ -184,6 +184,15 @@ impl FrontEnd {
 }
 
 impl FrontEnd {
+    /// Moves the 3D lines on `table`'s top with soft edges (shadows, texture;
+    /// [`super::soft_edges`]) from `lines3d` to `set_apart`.
+    pub fn set_apart_soft_lines(&mut self, table: &super::Table) {
+        let lines = std::mem::take(&mut self.lines3d);
+        let (kept, soft) = super::soft_edges::split(lines, &self.left_rectified, table);
+        self.lines3d = kept;
+        self.set_apart.extend(soft);
+    }
+
     /// Nothing found yet (what the Joiner fills).
     pub fn empty(rect: Option<Rectification>) -> FrontEnd {
         FrontEnd {

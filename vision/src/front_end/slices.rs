@@ -278,7 +278,7 @@ pub fn run_sliced(
     fe.timings_ms.push(("slices", slices_ms));
     fe.timings_ms.push(("join", clock.elapsed().as_secs_f64() * 1e3));
     if let Some(table) = &workspace.table {
-        super::soft_edges::set_apart(&mut fe, table);
+        fe.set_apart_soft_lines(table);
     }
     fe
 }

@@ -14,7 +14,6 @@
 
 use super::canny::Edgel;
 use super::lines3d::Line3;
-use super::pipeline::FrontEnd;
 use super::workspace::Table;
 
 /// A line is soft where its edgels' median sharpness is below this share of the image's.
@@ -77,14 +76,11 @@ pub fn is_soft_on_table(line: &Line3, edgels: &[Edgel], image: f64, table: &Tabl
     on_table && line_sharpness(line, edgels).is_some_and(|s| s < SOFT_SHARE * image)
 }
 
-/// Moves the 3D lines on `table`'s top with soft edges from `fe.lines3d` to `fe.set_apart`.
-pub fn set_apart(fe: &mut FrontEnd, table: &Table) {
-    let Some(image) = image_sharpness(&fe.left_rectified) else { return };
-    let lines = std::mem::take(&mut fe.lines3d);
-    let (soft, kept): (Vec<Line3>, Vec<Line3>) =
-        lines.into_iter().partition(|l| is_soft_on_table(l, &fe.left_rectified, image, table));
-    fe.lines3d = kept;
-    fe.set_apart.extend(soft);
+/// `lines` split into those not soft on `table`'s top and those that are, judged by the left
+/// image's (rectified) `edgels` (the lines' inliers index them).
+pub fn split(lines: Vec<Line3>, edgels: &[Edgel], table: &Table) -> (Vec<Line3>, Vec<Line3>) {
+    let Some(image) = image_sharpness(edgels) else { return (lines, Vec::new()) };
+    lines.into_iter().partition(|l| !is_soft_on_table(l, edgels, image, table))
 }
 
 #[cfg(test)]
