@@ -129,7 +129,8 @@ enum Command {
     /// --right R --cameras FILE` and no world, any stereo pair: what was found, compared with a
     /// truth file only if `--truth` gives one. With no cell layout the matcher takes the table's
     /// top from the pair's own 3D lines (JSON `table_top`; a note says where, or that none was
-    /// found).
+    /// found), and sets apart the lines on it with soft edges as shadows or texture (JSON
+    /// `lines3d_set_apart`, and a note).
     Locate {
         #[arg(required_unless_present = "left", conflicts_with_all = ["left", "right"])]
         world: Option<PathBuf>,

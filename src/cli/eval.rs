@@ -19,7 +19,11 @@ pub enum EvalTarget {
     /// whose middle lies more than 5 mm from every true feature edge), `lines3d_off_edges_on_table`
     /// (of all 3D lines, those off every edge with both ends within 5 mm of the true table top:
     /// shadows' edges and the table's texture), `lines3d_on_table` (all with both ends there,
-    /// parts' bottom edges included), `table` (what placed it: `--hand-eye`, or none),
+    /// parts' bottom edges included; these three count the 3D lines the front end kept),
+    /// `set_apart` (the lines set apart as shadows or texture, `front_end::soft_edges`:
+    /// `per_scene`, `off_edges` the share of them off every true edge, `of_off_edges_on_table`
+    /// the share of the table's off-edge lines set apart; without `--hand-eye` the table's top
+    /// is taken from the 3D lines to set them apart), `table` (what placed it: `--hand-eye`, or none),
     /// `timings_ms` (median per stage: with slices,
     /// each stage's processor time summed over the slices, then `slices` and `join` wall time),
     /// `unsettled_scenes` (scenes that did not come to rest, evaluated anyway), `left_edgels`
