@@ -140,32 +140,30 @@ pub(crate) fn larger_reading(
     if r.support_fraction >= max_support {
         return Larger::No;
     }
-    let solids: Vec<Solid> = kept
-        .iter()
-        .enumerate()
-        .filter(|(k, _)| *k != i)
-        .filter_map(|(_, l)| models.iter().find(|m| m.name == l.model).map(|m| Solid::new(m, &l.cam_from_model)))
-        .collect();
-    let solids: Vec<&Solid> = solids.iter().collect();
-    let explained = super::verify::Explained::of(
-        kept.iter()
-            .enumerate()
-            .filter(|(k, _)| *k != i)
-            .filter_map(|(_, l)| models.iter().find(|m| m.name == l.model).map(|m| (m, &l.cam_from_model))),
-        ev.cam,
-    );
-    let others: Vec<Body> = kept
-        .iter()
-        .enumerate()
-        .filter(|(k, _)| *k != i)
-        .filter_map(|(_, l)| models.iter().find(|m| m.name == l.model).map(|m| Body::new(m, &l.cam_from_model)))
-        .collect();
-    let taken =
-        |x: &Point3<f64>| p.table.is_some_and(|t| t.height_of(x) < -ROOM_M) || others.iter().any(|b| b.holds_deep(x));
-    let beyond: Vec<(&MatcherModel, Isometry3<f64>, Beyond)> = models
+    // The larger models' poses round the report: most models have none, and then nothing
+    // else need be built.
+    let around: Vec<(&MatcherModel, Isometry3<f64>)> = models
         .iter()
         .filter(|m| m.name != own.name)
         .flat_map(|m| holding_poses(own, m, p).into_iter().map(move |t| (m, r.cam_from_model * t)))
+        .collect();
+    if around.is_empty() {
+        return Larger::No;
+    }
+    let others: Vec<(&MatcherModel, &Isometry3<f64>)> = kept
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| *k != i)
+        .filter_map(|(_, l)| models.iter().find(|m| m.name == l.model).map(|m| (m, &l.cam_from_model)))
+        .collect();
+    let solids: Vec<Solid> = others.iter().map(|(m, pose)| Solid::new(m, pose)).collect();
+    let solids: Vec<&Solid> = solids.iter().collect();
+    let explained = super::verify::Explained::of(others.iter().copied(), ev.cam);
+    let bodies: Vec<Body> = others.iter().map(|(m, pose)| Body::new(m, pose)).collect();
+    let taken =
+        |x: &Point3<f64>| p.table.is_some_and(|t| t.height_of(x) < -ROOM_M) || bodies.iter().any(|b| b.holds_deep(x));
+    let beyond: Vec<(&MatcherModel, Isometry3<f64>, Beyond)> = around
+        .into_iter()
         .map(|(m, pose)| {
             let b =
                 image_support_beyond((m, &pose), (own, &r.cam_from_model), ev, &solids, &explained, APART_PX, &taken);
