@@ -302,7 +302,8 @@ enum CalibrateWhat {
     /// cameras as built, computed after the solve.
     Cameras {
         world: PathBuf,
-        /// Board poses visited.
+        /// Board poses planned; where their views do not determine the cameras (too few boards
+        /// seen whole, or too little of the image covered), as many more are visited, twice at most.
         #[arg(long, default_value_t = 24, value_parser = clap::value_parser!(u16).range(3..=500))]
         poses: u16,
         /// Seed of the scene and the poses (default: the world file's).

@@ -175,3 +175,63 @@ fn calibrate_cameras_through_the_arm_finds_the_cameras_as_built() {
     }
     std::fs::remove_dir_all(&out).unwrap();
 }
+
+/// Where the planned poses do not determine the cameras, `marvin calibrate cameras` visits
+/// more, as an operator would take more pictures. Ideal `widgets.toml` tuning seed 8: of its 24
+/// planned poses only 4 showed the whole board in both images (the board cut off by an
+/// image's edge, or a corner behind the jaws), and the calibration failed for want of corners
+/// near the image's edges; with the poses after them it solves, and the solution (computed
+/// without the truth) matches the cameras as built.
+#[test]
+fn a_calibration_short_of_views_visits_more_poses() {
+    let out = std::env::temp_dir().join(format!("marvin_calibrate_more_{}", std::process::id()));
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_marvin"))
+        .args(["calibrate", "cameras", concat!(env!("CARGO_MANIFEST_DIR"), "/worlds/ideal/widgets.toml")])
+        .args(["--seed", "8", "--json", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let doc: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    let views = doc["views"].as_array().unwrap();
+    assert!(views.len() > 24, "only the planned {} poses were visited", views.len());
+    let e = &doc["error"];
+    for side in ["left", "right"] {
+        let c = &e[side];
+        let f = |k: &str| c[k].as_f64().unwrap().abs();
+        assert!(f("fx_rel") < 0.0015 && f("fy_rel") < 0.0015, "{side}: {c}");
+        assert!(f("cx_px") < 2.0 && f("cy_px") < 2.0, "{side}: {c}");
+    }
+    let g = |k: &str| e[k].as_f64().unwrap().abs();
+    assert!(g("baseline_mm") < 0.2 && g("right_position_mm") < 0.6 && g("rotation_deg") < 0.15, "{e}");
+    std::fs::remove_dir_all(&out).unwrap();
+}
+
+/// A calibration that cannot solve says why and keeps what it saw: with `--save-images` the
+/// views are written (every pose visited, the extra ones too) and the error says where.
+/// Three poses a round cannot give the views Zhang's method needs.
+#[test]
+fn a_calibration_that_fails_saves_its_views() {
+    let dir = std::env::temp_dir().join(format!("marvin_calibrate_fails_{}", std::process::id()));
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_marvin"))
+        .args(["calibrate", "cameras", concat!(env!("CARGO_MANIFEST_DIR"), "/worlds/ideal/widgets.toml")])
+        .args(["--seed", "8", "--poses", "3", "--out"])
+        .arg(dir.join("cams"))
+        .arg("--save-images")
+        .arg(dir.join("views"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success(), "{stderr}");
+    assert!(stderr.contains("the views are saved in") && stderr.contains("poses gave the whole board"), "{stderr}");
+    assert!(stderr.contains("more poses"), "no extra poses were visited: {stderr}");
+    let listed: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("views/views.json")).unwrap()).unwrap();
+    let views = listed["views"].as_array().unwrap();
+    assert_eq!(views.len(), 9, "3 planned poses and two rounds of 3 more");
+    for v in views {
+        assert!(dir.join("views").join(v["left"].as_str().unwrap()).exists(), "{v}");
+    }
+    assert!(!dir.join("cams/cameras.json").exists(), "a failed calibration wrote a file");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -7,7 +7,9 @@ use super::output::emit;
 use anyhow::Context;
 use camera_calib::file::CamerasFile;
 use camera_calib::{Intrinsics, StereoSolution};
-use marvin::engine::calibrate_cameras::{CameraCalibConfig, CameraCalibration, calibrate_cameras};
+use marvin::engine::calibrate_cameras::{
+    CameraCalibConfig, CameraCalibration, Unsolved, ViewRecord, calibrate_cameras,
+};
 use nalgebra::Isometry3;
 use serde_json::{Value, json};
 use std::path::{Path, PathBuf};
@@ -91,7 +93,10 @@ pub fn run(args: CamerasArgs) -> anyhow::Result<()> {
         }
     };
     let keep_images = args.save_images.is_some() || args.rerun.is_some();
-    let c = run_once(cell, &scn.library, &config, keep_images, &mut progress)?;
+    let c = match run_once(cell, &scn.library, &config, keep_images, &mut progress) {
+        Ok(c) => c,
+        Err(e) => return Err(with_views_saved(e, args.save_images.as_deref())),
+    };
     if let Some(path) = &args.rerun {
         let mut r =
             marvin::engine::recording::Recording::start(&marvin::engine::recording::Sink::File(path.to_path_buf()))?;
@@ -104,7 +109,7 @@ pub fn run(args: CamerasArgs) -> anyhow::Result<()> {
     let file = CamerasFile::from_solution(&c.solution, c.size);
     file.save_all(&args.out)?;
     if let Some(dir) = &args.save_images {
-        save_images(dir, &c)?;
+        save_images(dir, &c.views)?;
     }
     let errors = local.then(|| TrueRig::of(&scn.world).errors(&c.solution, c.size));
     report(&args, &c, &file, errors)
@@ -173,12 +178,23 @@ fn report(args: &CamerasArgs, c: &CameraCalibration, file: &CamerasFile, errors:
     emit(&format!("wrote {}", args.out.display()))
 }
 
-/// Every view used, as lossless PNGs, with the board's geometry and the corners found beside
+/// A calibration that did not solve, its views saved first where `--save-images` asks for them
+/// (they are what tells why: a board cut off by the image's edge, or hidden), and the error
+/// saying where they are.
+fn with_views_saved(e: anyhow::Error, dir: Option<&Path>) -> anyhow::Error {
+    let (Some(dir), Some(unsolved)) = (dir, e.downcast_ref::<Unsolved>()) else { return e };
+    match save_images(dir, &unsolved.views) {
+        Ok(()) => e.context(format!("the views are saved in {}", dir.display())),
+        Err(saving) => e.context(format!("and the views could not be saved: {saving:#}")),
+    }
+}
+
+/// Every view taken, as lossless PNGs, with the board's geometry and the corners found beside
 /// them (`views.json`), so that another tool can calibrate from the same images.
-fn save_images(dir: &Path, c: &CameraCalibration) -> anyhow::Result<()> {
+fn save_images(dir: &Path, views: &[ViewRecord]) -> anyhow::Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let mut listed = Vec::new();
-    for (k, v) in c.views.iter().enumerate() {
+    for (k, v) in views.iter().enumerate() {
         let Some((l, r)) = &v.images else { continue };
         let names = [format!("view{k:02}_left.png"), format!("view{k:02}_right.png")];
         for (img, name) in [l, r].into_iter().zip(&names) {
