@@ -38,8 +38,9 @@ pub fn load_cameras(path: &Path) -> anyhow::Result<mesh::StereoCalibration> {
 #[derive(Debug, Clone, Default)]
 pub struct Truth {
     pub cam_from_base: Option<Isometry3<f64>>,
-    /// The flag in the gripper, from the physics, at each capture.
-    pub flag_in_gripper: Vec<Isometry3<f64>>,
+    /// The flag in the gripper, from the physics, at each capture from the first sighting the
+    /// calibration kept (those before a hand-in again are set aside), with the pose's index.
+    pub flag_in_gripper: Vec<(usize, Isometry3<f64>)>,
     /// Why the cell's scene had not settled, if it had not.
     pub unsettled: Option<String>,
 }
@@ -47,13 +48,13 @@ pub struct Truth {
 impl Truth {
     /// How far the flag moved in the jaws between the first and last sighting, mm.
     pub fn flag_creep_mm(&self) -> Option<f64> {
-        let (a, b) = (self.flag_in_gripper.first()?, self.flag_in_gripper.last()?);
+        let ((_, a), (_, b)) = (self.flag_in_gripper.first()?, self.flag_in_gripper.last()?);
         Some((a.translation.vector - b.translation.vector).norm() * 1e3)
     }
 
     /// How far the flag turned in the jaws between the first and last sighting, degrees.
     pub fn flag_turn_deg(&self) -> Option<f64> {
-        let (a, b) = (self.flag_in_gripper.first()?, self.flag_in_gripper.last()?);
+        let ((_, a), (_, b)) = (self.flag_in_gripper.first()?, self.flag_in_gripper.last()?);
         Some(a.rotation.angle_to(&b.rotation).to_degrees())
     }
 }
@@ -126,11 +127,11 @@ pub fn run_once(
     let config = &CalibrateConfig { cameras: Some(cameras), ..config.clone() };
     let mut truth = Truth::default();
     let local = cell.local();
-    let mut after_capture = |_: &mut Client, _k: usize| -> anyhow::Result<()> {
+    let mut after_capture = |_: &mut Client, k: usize| -> anyhow::Result<()> {
         if let Some(server) = local {
             let t = server.truth()?;
             if let Some(p) = t.tool_in_gripper {
-                truth.flag_in_gripper.push(p.to_isometry("tool_in_gripper")?);
+                truth.flag_in_gripper.push((k, p.to_isometry("tool_in_gripper")?));
             }
             truth.cam_from_base = Some(t.cam_from_base.to_isometry("cam_from_base")?);
             truth.unsettled = t.unsettled;
@@ -139,6 +140,9 @@ pub fn run_once(
     };
     let calibration = calibrate(&mut client, library, config, &mut after_capture, progress)?;
     client.bye()?;
+    // Captures before the flag was handed in again held it otherwise.
+    let first_kept = calibration.poses.iter().position(|p| p.cam_from_flag.is_some()).unwrap_or(0);
+    truth.flag_in_gripper.retain(|(k, _)| *k >= first_kept);
     Ok((calibration, truth, measured))
 }
 
@@ -215,7 +219,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
             doc["truth"] = json!({
                 "cam_from_base": pose_json(&t),
                 // From the physics at the first sighting (it creeps: see flag_creep_mm).
-                "gripper_from_flag": truth.flag_in_gripper.first().map(pose_json),
+                "gripper_from_flag": truth.flag_in_gripper.first().map(|(_, p)| pose_json(p)),
             });
             doc["error"] = json!({ "translation_mm": mm, "rotation_deg": deg });
             doc["flag_creep_mm"] = json!(truth.flag_creep_mm());
