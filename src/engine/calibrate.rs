@@ -136,12 +136,14 @@ pub fn calibrate(
             // again, as an operator would, and the sightings start afresh: it sits anew in the
             // jaws, and the solve has one flag-in-gripper transform.
             if client.status()?.gripper_opening_mm < held_mm - crate::engine::calibrate_cameras::JAW_SLACK_MM {
-                let here = poses.last_mut().expect("just pushed");
-                here.cam_from_flag = None;
-                here.note = format!("{} (the flag left the jaws on the way here)", here.note);
+                poses.last_mut().expect("just pushed").cam_from_flag = None;
                 losses += 1;
                 let settled = solve(poses.clone(), model).is_ok_and(|c| !too_uncertain(&c.solution));
-                if settled || losses > MAX_FLAG_LOSSES {
+                let stop = settled || losses > MAX_FLAG_LOSSES;
+                let here = poses.last_mut().expect("just pushed");
+                let then = if stop { "" } else { "; handed in again" };
+                here.note = format!("{} (the flag left the jaws on the way here{then})", here.note);
+                if stop {
                     lost = true;
                     progress(&format!("the flag left the jaws on the way to pose {}: no more poses", k + 1));
                     break;
@@ -150,8 +152,6 @@ pub fn calibrate(
                 let before =
                     if aside > 0 { format!(", the {aside} sightings before it set aside") } else { String::new() };
                 progress(&format!("the flag left the jaws on the way to pose {}: handed in again{before}", k + 1));
-                let here = poses.last_mut().expect("just pushed");
-                here.note = format!("{}; handed in again", here.note.trim_end_matches(')')) + ")";
                 client.stow_tool().context("taking back the flag that left the jaws")?;
                 client.take_tool(FLAG).context("handing the flag into the gripper again")?;
                 held_mm = client.status()?.gripper_opening_mm;

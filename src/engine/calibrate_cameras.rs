@@ -210,8 +210,8 @@ pub fn calibrate_cameras(
 /// board partly out of view, or behind the jaws, too often), the calibration visits as many
 /// poses again, up to this many times, as an operator would take more pictures. Ideal
 /// `widgets.toml` tuning seed 8: 4 of 24 poses showed the whole board in both images (10 cut
-/// off by the image's edge in one camera, 6 with a corner behind the jaws), covering 36% of
-/// the left image against the 40% needed.
+/// off by the image's edge in one camera, 6 short of 1-4 corners), covering 36% of the left
+/// image against the 40% needed.
 pub const MAX_EXTRA_ROUNDS: usize = 2;
 
 /// A camera calibration whose views did not determine the cameras: why, with the views taken
