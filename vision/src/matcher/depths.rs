@@ -41,6 +41,13 @@ impl EdgelDepths {
         }
     }
 
+    /// The depth stereo gave edgel `i` and the depth one pixel of disparity spans there
+    /// (metres), if it was matched.
+    pub fn of_edgel(&self, i: usize) -> Option<(f64, f64)> {
+        let [z, per_px] = *self.at.get(i)?;
+        (!z.is_nan()).then_some((z as f64, per_px as f64))
+    }
+
     /// Whether an edgel of `edges` near image point `(x, y)` lies at depth `z`, within
     /// `tolerance_px` of disparity: `None` where no edgel near it has a depth. Any one agreeing
     /// is enough (near a corner the edgels of two edges at different depths lie side by side).

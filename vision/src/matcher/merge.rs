@@ -462,6 +462,9 @@ pub(crate) fn hidden_in_part(
 /// reports, and the share left out 8 fewer with 9 more.) What an object kept hides cannot
 /// count against a report, so after each one kept the reports it may hide have their share counted again over
 /// the part still in view (a U-channel with an arm under a block is judged on the rest of it).
+/// A report of another model on as much 3D evidence that the image bears out where the two
+/// differ is kept in the best's place ([`super::ties`]), and a report the camera saw through
+/// is not kept ([`super::see_through`]).
 pub(crate) fn resolve(
     models: &[MatcherModel],
     (scene, p): (&[Seg], &MatchParams),
@@ -488,6 +491,11 @@ pub(crate) fn resolve(
             Some(Pending { loc, model, solid, matched, score: 0.0 })
         })
         .collect();
+    impl TieCandidate for Pending<'_> {
+        fn parts(&self) -> (&MatcherModel, &Located, f64) {
+            (self.model, &self.loc, self.matched)
+        }
+    }
     let mut solids = solids_of(models, kept);
     let mut newest: Option<usize> = None;
     loop {
@@ -506,7 +514,16 @@ pub(crate) fn resolve(
         }
         let best = pending.iter().enumerate().max_by(|a, b| a.1.score.total_cmp(&b.1.score).then(b.0.cmp(&a.0)));
         let Some((i, _)) = best else { break };
+        let i = match image {
+            Some(ev) => settle_tie(&pending, i, (kept, &solids), models, ev),
+            None => i,
+        };
         let r = pending.remove(i);
+        if image.is_some_and(|ev| {
+            super::see_through::seen_through(r.model, &r.loc.cam_from_model, ev).is_some_and(|s| s.refutes())
+        }) {
+            continue;
+        }
         for &j in &r.loc.scene_lines {
             claimed[j] = true;
         }
@@ -514,6 +531,51 @@ pub(crate) fn resolve(
         solids.push(r.solid);
         newest = Some(solids.len() - 1);
     }
+}
+
+/// Of the pending reports, the one to keep: the best (`best`), or a report of another model
+/// that fills the same space on as much 3D evidence ([`super::ties::TIE`]) where the image
+/// shows its own edges clearly better than the best's ([`super::ties::gain_where_apart`]),
+/// none hidden by `solids` or explained by `kept`.
+fn settle_tie<P: TieCandidate>(
+    pending: &[P],
+    best: usize,
+    (kept, solids): (&[Located], &[Solid]),
+    models: &[MatcherModel],
+    ev: &ImageEvidence,
+) -> usize {
+    let (b_model, b_loc, b_matched) = pending[best].parts();
+    let b_pose = &b_loc.cam_from_model;
+    let rivals: Vec<usize> = (0..pending.len())
+        .filter(|&j| {
+            let (q_model, q_loc, q_matched) = pending[j].parts();
+            let q_pose = &q_loc.cam_from_model;
+            j != best
+                && q_model.name != b_model.name
+                && q_matched >= super::ties::TIE * b_matched
+                && space_shared(q_model, q_pose, b_model, b_pose).max(space_shared(b_model, b_pose, q_model, q_pose))
+                    > MAX_SPACE_SHARED
+        })
+        .collect();
+    if rivals.is_empty() {
+        return best;
+    }
+    let hiding: Vec<&Solid> = solids.iter().collect();
+    let explained = explained_by(models, kept, ev);
+    rivals
+        .into_iter()
+        .filter_map(|j| {
+            let (q_model, q_loc, _) = pending[j].parts();
+            let readings = ((b_model, b_pose), (q_model, &q_loc.cam_from_model));
+            super::ties::gain_where_apart(readings, ev, &hiding, &explained).map(|gain| (j, gain))
+        })
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .map_or(best, |(j, _)| j)
+}
+
+/// What [`settle_tie`] reads off a pending report: its model, the report, its 3D length matched.
+trait TieCandidate {
+    fn parts(&self) -> (&MatcherModel, &Located, f64);
 }
 
 /// The 3D length a report matches, less [`OVERRUN_WEIGHT`] times the length of its lines that

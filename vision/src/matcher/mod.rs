@@ -47,6 +47,10 @@
 //! - [`table`]: the table the parts rest on; readings through it are refused.
 //! - [`table_look`]: parts lying flat on the table on too few 3D lines for the first look.
 //! - [`image_look`]: parts lying flat on the table on no 3D line, from an image corner and both images.
+//! - [`ties`]: two readings of different models on the same 3D evidence, told apart where
+//!   they differ in the image.
+//! - [`see_through`]: depth order, a reading whose solid would stand in front of edges stereo
+//!   found behind it.
 //! - [`merge`]: all models in parallel, reports merged, the second, third and table looks.
 //! - [`polish`]: each report's pose pulled onto the edgels of both images at once, and turned
 //!   where both images show a turn of it more sharply.
@@ -68,11 +72,13 @@ pub mod pose_fit;
 pub mod ranking;
 pub mod search;
 pub mod second_look;
+pub mod see_through;
 pub mod shading;
 pub mod superset;
 pub mod support;
 pub mod table;
 pub mod table_look;
+pub mod ties;
 pub mod turnover;
 pub mod turns;
 pub mod verify;

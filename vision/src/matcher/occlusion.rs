@@ -110,6 +110,19 @@ impl Solid {
         apart < reach && d - self.radius < e + other.radius
     }
 
+    /// How far along the line of sight `d` (from the camera at the origin) it first enters the
+    /// solid, as a multiple of `d`: with `d.z` = 1, the depth where it does. `None` if it passes by.
+    pub fn entry(&self, d: &Vector3<f64>) -> Option<f64> {
+        let per_z = 1.0 / d.z;
+        let at = [d.x * per_z, d.y * per_z];
+        self.facets
+            .iter()
+            .filter(|f| d.z <= 0.0 || f.boxes(&at))
+            .filter_map(|f| f.crossing(d))
+            .filter(|t| *t > 0.0)
+            .min_by(|a, b| a.total_cmp(b))
+    }
+
     /// Whether the solid hides point `x` (`cam` frame) from a camera at the origin.
     pub fn hides(&self, x: &Point3<f64>) -> bool {
         let (d, dist) = (x.coords, x.coords.norm());

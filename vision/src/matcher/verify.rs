@@ -25,7 +25,7 @@ pub struct ImageEvidence<'a> {
     /// The edgels spread into an orientation mask, so that each sample is one look-up.
     mask: std::sync::Arc<EdgeMask>,
     /// The depths stereo gave the left image's matched edgels, by pixel (none without stereo).
-    depths: Option<std::sync::Arc<EdgelDepths>>,
+    pub(crate) depths: Option<std::sync::Arc<EdgelDepths>>,
     /// The pair's other image (none for the left image alone).
     pub right: Option<std::sync::Arc<RightImage<'a>>>,
 }
