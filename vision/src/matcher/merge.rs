@@ -8,11 +8,13 @@
 //! both show a turn more sharply ([`super::polish`]), the reports' faces read for one light
 //! ([`super::shading::judge_by_shading`]), and last the image look again with that light: in
 //! full where the check dropped a report, else on the starts the first image look gave up for
-//! want of edgels, judged on the edges the light lets show ([`super::contrast`]).
+//! want of edgels, judged on the edges the light lets show ([`super::contrast`]). Of two reports
+//! left sharing more than a sliver of space, the weaker is dropped ([`super::overlap`]).
 
 use super::hypotheses::{ScenePairs, scene_pairs};
 use super::model::{Located, MatchParams, MatcherModel, Seg};
 use super::occlusion::{MIN_IN_VIEW, Solid};
+use super::overlap::{MAX_SPACE_SHARED, space_shared};
 use super::search::{Search, locate_from};
 use super::table::through_table;
 use super::verify::{Explained, ImageEvidence, MAX_EXPLAINED, image_support_unhidden};
@@ -125,6 +127,7 @@ fn locate_all_in_pool(
             }
         }
     }
+    super::overlap::drop_the_weaker(models, &mut kept, |m, l| matched_length(m, l, scene, p) * l.image_support.sqrt());
     kept
 }
 
@@ -621,33 +624,6 @@ pub(crate) fn admissible(models: &[MatcherModel], loc: &Located, kept: &[Located
                 || space_shared(other, &k.cam_from_model, model, &loc.cam_from_model) > MAX_SPACE_SHARED
         })
     })
-}
-
-/// Two objects cannot fill the same space: a report sharing more than this fraction of its own
-/// interior, or of a kept object's, with that object is not admissible. Poses a millimetre off
-/// share a sliver where solids touch; a second report of one object shares nearly all.
-pub(crate) const MAX_SPACE_SHARED: f64 = 0.2;
-
-/// The fraction of `a`'s interior points (at `a_pose`) that lie inside `b` (at `b_pose`).
-pub(crate) fn space_shared(
-    a: &MatcherModel,
-    a_pose: &Isometry3<f64>,
-    b: &MatcherModel,
-    b_pose: &Isometry3<f64>,
-) -> f64 {
-    let ((ca, ra), (cb, rb)) = (a.bounding_sphere(), b.bounding_sphere());
-    if (a_pose * ca - b_pose * cb).norm() > ra + rb || a.interior.is_empty() {
-        return 0.0;
-    }
-    let b_from_a = b_pose.inverse() * a_pose;
-    let (lo, hi) = b.bounds;
-    let inside = a
-        .interior
-        .iter()
-        .map(|p| b_from_a * p)
-        .filter(|p| (0..3).all(|k| (lo[k]..=hi[k]).contains(&p[k])) && mesh::trimesh::encloses(&b.triangles, p))
-        .count();
-    inside as f64 / a.interior.len() as f64
 }
 
 #[cfg(test)]

@@ -51,6 +51,7 @@
 //!   they differ in the image.
 //! - [`see_through`]: depth order, a reading whose solid would stand in front of edges stereo
 //!   found behind it.
+//! - [`overlap`]: two reports filling the same space; the weaker is not there.
 //! - [`merge`]: all models in parallel, reports merged, the second, third and table looks.
 //! - [`polish`]: each report's pose pulled onto the edgels of both images at once, and turned
 //!   where both images show a turn of it more sharply.
@@ -67,6 +68,7 @@ pub mod light;
 pub mod merge;
 pub mod model;
 pub mod occlusion;
+pub mod overlap;
 pub mod polish;
 pub mod pose_fit;
 pub mod ranking;
