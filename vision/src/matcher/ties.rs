@@ -40,6 +40,18 @@ pub(crate) type Reading<'m> = (&'m MatcherModel, &'m Isometry3<f64>);
 /// that `hiding` hides or `explained` explains) the `rival` shows along edgels than the `best`
 /// shows of its own, where that is more than [`TIE_GAIN`]; `None` otherwise.
 pub(crate) fn gain_where_apart(
+    readings: (Reading, Reading),
+    ev: &ImageEvidence,
+    hiding: &[&Solid],
+    explained: &Explained,
+) -> Option<f64> {
+    where_apart(readings, ev, hiding, explained).filter(|gain| *gain > TIE_GAIN)
+}
+
+/// How much more of its own edges the `rival` shows along edgels than the `best` shows of its
+/// own (as [`gain_where_apart`]), whatever it is; `None` where the rival has too little of its
+/// own in view to tell ([`MIN_PX`]).
+pub(crate) fn where_apart(
     (best, rival): (Reading, Reading),
     ev: &ImageEvidence,
     hiding: &[&Solid],
@@ -49,8 +61,7 @@ pub(crate) fn gain_where_apart(
     let own = image_support_beyond(best, rival, ev, hiding, explained, APART_PX, &nothing_taken);
     let theirs = image_support_beyond(rival, best, ev, hiding, explained, APART_PX, &nothing_taken);
     let own_share = if own.px >= MIN_OWN_PX { own.share } else { 0.0 };
-    let gain = theirs.share - own_share;
-    (theirs.px >= MIN_PX && gain > TIE_GAIN).then_some(gain)
+    (theirs.px >= MIN_PX).then_some(theirs.share - own_share)
 }
 
 #[cfg(test)]
