@@ -53,7 +53,8 @@ pub(crate) fn space_shared(
 const SLIVER: f64 = 0.03;
 
 /// Of every two reports in `kept` that share more than a sliver of space, the one with less
-/// evidence (`evidence`) dropped, the weakest first.
+/// evidence (`evidence`) dropped: the reports stand strongest first, each unless it clashes
+/// with one already standing. Those left keep their order.
 pub(crate) fn drop_the_weaker(
     models: &[MatcherModel],
     kept: &mut Vec<Located>,
@@ -76,13 +77,12 @@ pub(crate) fn drop_the_weaker(
             standing.push(i);
         }
     }
-    standing.sort_unstable();
-    let mut k = 0;
-    kept.retain(|_| {
-        let keep = standing.binary_search(&k).is_ok();
-        k += 1;
-        keep
-    });
+    let mut stands = vec![false; kept.len()];
+    for i in standing {
+        stands[i] = true;
+    }
+    let mut stands = stands.into_iter();
+    kept.retain(|_| stands.next().unwrap_or(false));
 }
 
 #[cfg(test)]

@@ -273,11 +273,13 @@ fn best_turn(
         .filter(|turn| !super::turns::is_symmetry(model, turn))
         .map(|turn| report * turn)
         // Refitting is most of the cost: only turns that start near the report are refitted.
-        .filter(|start| image_support_at_least(model, start, ev, now_whole - APART_START_SLACK).is_some())
         .filter(|start| {
+            let Some(whole) = image_support_at_least(model, start, ev, now_whole - APART_START_SLACK) else {
+                return false;
+            };
             let then = in_view(start);
-            let near = image_support_at_least(model, start, ev, now_whole - TURN_START_SLACK).is_some()
-                && then.iter().zip(&now).all(|(t, n)| *t >= n - TURN_START_SLACK);
+            let near =
+                whole >= now_whole - TURN_START_SLACK && then.iter().zip(&now).all(|(t, n)| *t >= n - TURN_START_SLACK);
             near || then.iter().sum::<f64>() >= now_sum - APART_START_SUM_SLACK
         })
         .filter_map(|start| turns.refit(model, (scene, p), ev, start))
@@ -301,8 +303,8 @@ fn best_turn(
         .map(|(_, pose)| pose)
 }
 
-/// Whether the turned reading (`poses.1`) shows its own edges, where it and the report
-/// (`poses.0`) lie apart in the image, along edgels for [`super::ties::TIE_GAIN`] more of their
+/// Whether the `turned` reading shows its own edges, where it and the `report` lie apart in
+/// the image, along edgels for [`super::ties::TIE_GAIN`] more of their
 /// length than the report shows of its own, in each image where it has enough of them in view
 /// ([`super::ties::where_apart`]), and in one at least.
 fn shown_where_apart(

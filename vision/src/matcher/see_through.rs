@@ -19,6 +19,8 @@ use nalgebra::{Isometry3, Vector3};
 /// Edgels within this distance (pixels) of the reading's outline are not counted: a pose a
 /// little off puts the edges beside a part inside its outline.
 const INSET_PX: f64 = 3.0;
+/// The four offsets (pixels) whose lines of sight must all enter the reading's solid.
+const INSET: [(f64, f64); 4] = [(INSET_PX, 0.0), (-INSET_PX, 0.0), (0.0, INSET_PX), (0.0, -INSET_PX)];
 /// An edgel lies behind the reading's surface if it is further than this many pixels of
 /// disparity beyond it.
 const BEHIND_PX: f64 = 3.0;
@@ -62,8 +64,7 @@ pub fn seen_through(model: &MatcherModel, pose: &Isometry3<f64>, ev: &ImageEvide
         let Some((z, per_px)) = depths.of_edgel(i) else { continue };
         let ray = |dx: f64, dy: f64| -> Vector3<f64> { ev.cam.ray_cam(x + dx, y + dy) };
         let Some(front) = solid.entry(&ray(0.0, 0.0)) else { continue };
-        let inset = [(INSET_PX, 0.0), (-INSET_PX, 0.0), (0.0, INSET_PX), (0.0, -INSET_PX)];
-        if inset.iter().any(|&(dx, dy)| solid.entry(&ray(dx, dy)).is_none()) {
+        if INSET.iter().any(|&(dx, dy)| solid.entry(&ray(dx, dy)).is_none()) {
             continue;
         }
         out.inside += 1;
