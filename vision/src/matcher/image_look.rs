@@ -123,11 +123,7 @@ fn crossing(
 fn flat_corners(model: &MatcherModel, up: &Vector3<f64>) -> Vec<FlatCorner> {
     let mut out = Vec::new();
     for n in &model.resting {
-        // Half a turn about any axis across `n` where it already points up.
-        let across = n.cross(&if n.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() });
-        let lay = Rotation3::rotation_between(n, &-up).unwrap_or_else(|| {
-            Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(across), std::f64::consts::PI)
-        });
+        let lay = super::table::turn_between(n, &-up);
         let lowest = model.corners.iter().map(|c| n.dot(&c.coords)).fold(f64::MIN, f64::max);
         for c in model.corner_edges.iter().filter(|c| c.out.dot(n).abs() < 1e-6) {
             let height = lowest - n.dot(&c.corner.coords);

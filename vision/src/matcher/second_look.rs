@@ -22,7 +22,7 @@ use super::image_fit::{SEARCH_PX, refine_in_image};
 use super::model::{Corner, Located, MatchParams, MatcherModel, Seg, eye_of};
 use super::occlusion::{MIN_IN_VIEW, Solid};
 use super::support::{model_lines_of, scene_lines_of, support};
-use super::table::hopelessly_sunk;
+use super::table::{hopelessly_sunk, turn_between};
 use super::verify::{
     Explained, ImageEvidence, ImageLine, MAX_EXPLAINED, image_support_at_least, image_support_unhidden,
 };
@@ -105,20 +105,6 @@ fn turns(
         turn_about(&u, cos, sin) * r0
     };
     Some(([turn(1.0), turn(-1.0)], s0 + u * lambda))
-}
-
-/// The least turn taking unit vector `from` onto unit vector `to` (Rodrigues' formula, with
-/// the cosine and sine of the angle their dot and cross products give; as
-/// `Rotation3::rotation_between` but for no inverse cosine). Near opposite, where the axis is
-/// ill-defined, that function's turn, or half a turn about x where it gives none.
-fn turn_between(from: &Vector3<f64>, to: &Vector3<f64>) -> Rotation3<f64> {
-    let (cross, cos) = (from.cross(to), from.dot(to));
-    if 1.0 + cos < 1e-6 {
-        return Rotation3::rotation_between(from, to)
-            .unwrap_or_else(|| Rotation3::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI));
-    }
-    let k = cross.cross_matrix();
-    Rotation3::from_matrix_unchecked(Matrix3::identity() + k + k * k / (1.0 + cos))
 }
 
 /// The turn about unit vector `axis` by the angle of cosine `cos` and sine `sin`.

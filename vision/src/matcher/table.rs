@@ -16,7 +16,7 @@
 //! `widgets.toml` 1-500, six lay 17-40 mm under it and three 2-6 mm.
 
 use super::model::{MatcherModel, Table};
-use nalgebra::{Isometry3, Vector3};
+use nalgebra::{Isometry3, Matrix3, Rotation3, Vector3};
 
 /// How far (metres) a reading's lowest corner may lie under the table top: see the module's
 /// figures. Right readings came within 4.1 mm; this leaves them room.
@@ -51,6 +51,25 @@ pub(crate) fn lowest_height(table: &Table, model: &MatcherModel, pose: &Isometry
     let down = pose.rotation.inverse_transform_vector(&-up);
     let deepest = model.corners.iter().map(|c| down.dot(&c.coords)).fold(f64::MIN, f64::max);
     up.dot(&pose.translation.vector) + table.camera_height_m - deepest
+}
+
+/// The least turn taking unit vector `from` onto unit vector `to` (Rodrigues' formula, with
+/// the cosine and sine of the angle their dot and cross products give). Why not nalgebra's
+/// `Rotation3::rotation_between`: it takes the angle's inverse cosine, which for directions
+/// within rounding of each other (a part laid flat and laid flat again, [`super::table_look::laid_flat`])
+/// is ill-conditioned (a turn of 1e-8 rad for none) or, for a cosine a hair over 1, NaN. Near
+/// opposite, where the axis is ill-defined, nalgebra's turn, or half a turn about an axis
+/// across `from` where it gives none.
+pub(crate) fn turn_between(from: &Vector3<f64>, to: &Vector3<f64>) -> Rotation3<f64> {
+    let (cross, cos) = (from.cross(to), from.dot(to));
+    if 1.0 + cos < 1e-6 {
+        let across = from.cross(&if from.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() });
+        return Rotation3::rotation_between(from, to).unwrap_or_else(|| {
+            Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(across), std::f64::consts::PI)
+        });
+    }
+    let k = cross.cross_matrix();
+    Rotation3::from_matrix_unchecked(Matrix3::identity() + k + k * k / (1.0 + cos))
 }
 
 /// Whether a hypothesis of `model` at `pose` lies so deep in the table ([`HYPOTHESIS_BELOW_M`])
@@ -100,6 +119,16 @@ mod tests {
     }
 
     /// Heights measured in the table's own frame agree with the plane's, on and off the top.
+    /// The least turn takes each axis onto itself (no turn) and onto its opposite (half a turn
+    /// about an axis across it, where the axis of the turn is anyone's guess).
+    #[test]
+    fn turns_between_an_axis_and_itself_or_its_opposite() {
+        for axis in [Vector3::x(), Vector3::y(), Vector3::z()] {
+            assert!((turn_between(&axis, &axis).matrix() - Matrix3::identity()).norm() < 1e-15, "{axis}");
+            assert!((turn_between(&axis, &-axis) * axis + axis).norm() < 1e-12, "{axis} not turned over");
+        }
+    }
+
     #[test]
     fn heights_are_measured_from_the_top() {
         let cam_from_table = cam_from_table();

@@ -21,7 +21,7 @@ use super::occlusion::{MIN_IN_VIEW, Solid};
 use super::support::{FreeLines, NearLines, model_lines_of, scene_lines_of, support, support_score};
 use super::table::{cuts, rests_flat};
 use super::verify::{Explained, ImageEvidence, MAX_EXPLAINED, image_support_unhidden};
-use nalgebra::{Isometry3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
 /// What the objects located leave of a part in view must run along edgels for this share.
 /// Chosen on the tuning seeds (`marvin eval locate`, `widgets.toml` 1-500, `dense.toml` and
@@ -114,7 +114,7 @@ pub(crate) fn laid_flat(table: &Table, model: &MatcherModel, pose: &Isometry3<f6
     let Some(face) = model.resting.iter().max_by(|a, b| a.dot(&down_in_model).total_cmp(&b.dot(&down_in_model))) else {
         return *pose;
     };
-    let turn = Rotation3::rotation_between(&(pose.rotation * face), &-up).unwrap_or_else(Rotation3::identity);
+    let turn = super::table::turn_between(&(pose.rotation * face), &-up);
     let middle = pose * model.sphere.0;
     let rotation = UnitQuaternion::from_rotation_matrix(&turn) * pose.rotation;
     let turned = Isometry3::from_parts(
@@ -236,5 +236,27 @@ mod tests {
         assert!(!cuts(&table, &wedge, &laid), "laid through the top");
         let moved = (laid * wedge.sphere.0 - pose * wedge.sphere.0).norm();
         assert!(moved < 0.012, "its middle moved {:.1} mm", moved * 1e3);
+    }
+
+    /// A part laid flat and laid flat again stays where it was laid. Its face points down to
+    /// within rounding, and an inverse cosine of a cosine a hair over 1 gave a pose of NaNs
+    /// (an L-bracket laid flat twice on ideal `widgets.toml` tuning seed 85).
+    #[test]
+    fn a_part_laid_flat_twice_stays_where_it_was_laid() {
+        let mut rng = crate::matcher::fixtures::Lcg(11);
+        for name in ["wedge", "l_bracket", "block", "t_piece"] {
+            let part = model(name);
+            for _ in 0..200 {
+                let eye = Point3::from(rng.noise(0.4) + Vector3::new(0.0, -0.6, 0.6));
+                let table = Table::from_cam_from_table(&camera_at(eye).cam_from_world());
+                let pose = Isometry3::new(rng.noise(0.2) + Vector3::new(0.0, 0.0, 0.9), rng.noise(3.0));
+                let once = laid_flat(&table, &part, &pose);
+                let twice = laid_flat(&table, &part, &once);
+                let finite = twice.translation.vector.iter().chain(twice.rotation.coords.iter()).all(|x| x.is_finite());
+                assert!(finite, "{name} laid flat twice: {twice:?}");
+                assert!((twice.translation.vector - once.translation.vector).norm() < 1e-9, "{name} moved");
+                assert!(twice.rotation.angle_to(&once.rotation) < 1e-9, "{name} turned");
+            }
+        }
     }
 }
