@@ -378,7 +378,8 @@ mod tests {
     use super::*;
     use crate::matcher::fixtures::{model, verged_pair as pair};
     use crate::matcher::verify::{RightImage, drawn::model_edges};
-    use nalgebra::{Translation3, UnitQuaternion, Vector3};
+    use nalgebra::{Translation3, Unit, UnitQuaternion, Vector3};
+    use std::f64::consts::{FRAC_PI_2, PI};
 
     fn report(model: &MatcherModel, pose: Isometry3<f64>) -> Located {
         Located {
@@ -544,6 +545,56 @@ mod tests {
         let mut kept = [report(&wedge, misread)];
         let turns = crate::matcher::shading::TurnedCandidates::default();
         let turned = turn_in_stereo(std::slice::from_ref(&wedge), (&lines, &p), &ev, &turns, &mut kept);
+        let (mm, deg) = off_by(&truth, &kept[0].cam_from_model);
+        assert!(turned == [true] && mm < 0.05 && deg < 0.05, "turned back to {mm:.3} mm, {deg:.3} deg off");
+    }
+
+    /// A wedge standing on its tall end, read end for end on its slope: the left image shows
+    /// both readings' edges (as where a neighbour's edges run along the misreading's), the
+    /// right only the truth's, and the slope's lines are all the 3D evidence. The turn back,
+    /// about the box's centre projected on the slope (1.4 mm from the slope's middle, about
+    /// which the misreading lies), starts off the left image's edgels, short of the image's
+    /// bars for a refit; it keeps enough of the 3D support to be refitted, and is taken.
+    #[test]
+    fn a_wedge_on_its_end_read_end_for_end_on_its_slope_is_turned_back() {
+        let wedge = model("wedge");
+        let (left, right) = pair();
+        let standing = Isometry3::from_parts(
+            Translation3::new(0.01, 0.02, 0.035),
+            UnitQuaternion::from_euler_angles(0.0, 0.0, 0.5) * UnitQuaternion::from_euler_angles(0.0, -FRAC_PI_2, 0.0),
+        );
+        let truth = left.cam_from_world() * standing;
+        let right_from_cam = right.cam_from_world() * left.world_from_cam;
+        let slope_middle = Vector3::new(0.0, 0.0, 0.0065);
+        let about_middle = Translation3::from(slope_middle)
+            * UnitQuaternion::from_axis_angle(&Unit::new_normalize(Vector3::new(27.0, 0.0, 70.0)), PI)
+            * Translation3::from(-slope_middle);
+        let misread = truth * about_middle;
+        let (mut left_edges, _) = model_edges(&wedge, &truth, &left);
+        let (misread_edges, _) = model_edges(&wedge, &misread, &left);
+        for (e, &pixel) in misread_edges.edgels.iter().zip(&misread_edges.pixel) {
+            if left_edges.edgel_at(pixel as usize % 512, pixel as usize / 512).is_none() {
+                left_edges.push(pixel as usize, *e);
+            }
+        }
+        let (right_edges, _) = model_edges(&wedge, &(right_from_cam * truth), &right);
+        let ev = ImageEvidence::new(&left, &left_edges, Vec::new())
+            .with_right(RightImage { ev: ImageEvidence::new(&right, &right_edges, Vec::new()), right_from_cam });
+        let p = MatchParams::default();
+        let slope_lines: Vec<Seg> = true_lines(&wedge, &truth)
+            .into_iter()
+            .filter(|l| support_at(&wedge, &misread, std::slice::from_ref(l), &p).0 > 0.5 * (l.b - l.a).norm())
+            .collect();
+        let start = misread * crate::matcher::turns::of(&wedge)[4];
+        let image_support = |pose: &Isometry3<f64>| crate::matcher::verify::image_support(&wedge, pose, &ev);
+        let (now, then) = (image_support(&misread), image_support(&start));
+        assert!(then < now - APART_START_SLACK, "the turn starts on {then:.2} of the edgels against {now:.2}");
+        let support = |pose: &Isometry3<f64>| support_at(&wedge, pose, &slope_lines, &p).0;
+        let kept_share = support(&start) / support(&misread);
+        assert!(kept_share >= APART_START_SUPPORT, "it keeps {kept_share:.2} of the 3D support");
+        let mut kept = [report(&wedge, misread)];
+        let turns = crate::matcher::shading::TurnedCandidates::default();
+        let turned = turn_in_stereo(std::slice::from_ref(&wedge), (&slope_lines, &p), &ev, &turns, &mut kept);
         let (mm, deg) = off_by(&truth, &kept[0].cam_from_model);
         assert!(turned == [true] && mm < 0.05 && deg < 0.05, "turned back to {mm:.3} mm, {deg:.3} deg off");
     }
