@@ -274,14 +274,14 @@ fn best_turn(
         .map(|turn| report * turn)
         // Refitting is most of the cost: only turns that start near the report are refitted.
         .filter(|start| {
+            let keeps_the_lines = || support(start) >= APART_START_SUPPORT * now_support;
             let Some(whole) = image_support_at_least(model, start, ev, now_whole - APART_START_SLACK) else {
-                return support(start) >= APART_START_SUPPORT * now_support;
+                return keeps_the_lines();
             };
             let then = in_view(start);
             let near =
                 whole >= now_whole - TURN_START_SLACK && then.iter().zip(&now).all(|(t, n)| *t >= n - TURN_START_SLACK);
-            near || then.iter().sum::<f64>() >= now_sum - APART_START_SUM_SLACK
-                || support(start) >= APART_START_SUPPORT * now_support
+            near || then.iter().sum::<f64>() >= now_sum - APART_START_SUM_SLACK || keeps_the_lines()
         })
         .filter_map(|start| turns.refit(model, (scene, p), ev, start))
         .map(|c| polished(model, &c.pose, others, views))
@@ -354,7 +354,7 @@ const APART_START_SUM_SLACK: f64 = 0.2;
 /// 3D support 0.76 and 0.79 of the report's). Refitted, both came out right (0.5 deg, 0.9 mm).
 /// On the tuning sets (as for [`APART_KEEP_SUPPORT`]) 0.5 and 0.7 gave the same reports, 0.85
 /// missed seed 230; refitting every turn, the same reports as 0.7 for 60% more time in the
-/// matcher, where 0.7 costs none that the medians show (12.8 -> 13.3 ms on `widgets.toml`
+/// matcher, where 0.7 costs none that the medians show (12.8 -> 12.3 ms on `widgets.toml`
 /// 301-700).
 const APART_START_SUPPORT: f64 = 0.7;
 
@@ -409,6 +409,28 @@ mod tests {
             );
         let right_from_cam = right.cam_from_world() * left.world_from_cam;
         (model("wedge"), left, right, truth, right_from_cam)
+    }
+
+    /// `model` reported at `pose`, turned in stereo on `lines` and `ev`: whether it was turned,
+    /// and the pose it ends at.
+    fn turned_in_stereo(
+        model: &MatcherModel,
+        (lines, p): (&[Seg], &MatchParams),
+        ev: &ImageEvidence,
+        pose: Isometry3<f64>,
+    ) -> (Vec<bool>, Isometry3<f64>) {
+        let mut kept = [report(model, pose)];
+        let turns = crate::matcher::shading::TurnedCandidates::default();
+        let turned = turn_in_stereo(std::slice::from_ref(model), (lines, p), ev, &turns, &mut kept);
+        (turned, kept[0].cam_from_model)
+    }
+
+    /// Of `lines`, those `model` at `pose` lies along for more than half their length.
+    fn lines_along(model: &MatcherModel, pose: &Isometry3<f64>, lines: Vec<Seg>, p: &MatchParams) -> Vec<Seg> {
+        lines
+            .into_iter()
+            .filter(|l| support_at(model, pose, std::slice::from_ref(l), p).0 > 0.5 * (l.b - l.a).norm())
+            .collect()
     }
 
     /// `pose` 4 deg and 2 mm off, as a 3D line leaning on a silhouette leaves a report.
@@ -500,12 +522,7 @@ mod tests {
         let (mm, deg) = off_by(&truth, &(truth * bottom_to_slope));
         assert!(mm > 5.0 && deg > 170.0, "the misreading lies {mm:.1} mm, {deg:.0} deg off");
         let (lines, p) = (true_lines(&wedge, &truth), MatchParams::default());
-        let turn = |pose: Isometry3<f64>| {
-            let mut kept = [report(&wedge, pose)];
-            let turns = crate::matcher::shading::TurnedCandidates::default();
-            let turned = turn_in_stereo(std::slice::from_ref(&wedge), (&lines, &p), &ev, &turns, &mut kept);
-            (turned, kept[0].cam_from_model)
-        };
+        let turn = |pose: Isometry3<f64>| turned_in_stereo(&wedge, (&lines, &p), &ev, pose);
         let (turned, got) = turn(truth * bottom_to_slope);
         let (mm, deg) = off_by(&truth, &got);
         assert!(turned == [true] && mm < 0.05 && deg < 0.05, "turned back to {mm:.3} mm, {deg:.3} deg off");
@@ -533,19 +550,15 @@ mod tests {
             .max_by(|a, b| (a.b - a.a).norm().total_cmp(&(b.b - b.a).norm()))
             .expect("the misreading has lines of its own");
         // The true wedge's lines that the misreading lies along too.
-        let shared = truth_lines
-            .into_iter()
-            .filter(|l| support_at(&wedge, &misread, std::slice::from_ref(l), &p).0 > 0.5 * (l.b - l.a).norm());
-        let lines: Vec<Seg> = shared.chain([own_line]).collect();
+        let shared = lines_along(&wedge, &misread, truth_lines, &p);
+        let lines: Vec<Seg> = shared.into_iter().chain([own_line]).collect();
         let kept_share = support_at(&wedge, &truth, &lines, &p).0 / support_at(&wedge, &misread, &lines, &p).0;
         assert!(
             (APART_KEEP_SUPPORT..TURN_KEEP_SUPPORT).contains(&kept_share),
             "the turn back keeps {kept_share:.3} of the misreading's 3D support"
         );
-        let mut kept = [report(&wedge, misread)];
-        let turns = crate::matcher::shading::TurnedCandidates::default();
-        let turned = turn_in_stereo(std::slice::from_ref(&wedge), (&lines, &p), &ev, &turns, &mut kept);
-        let (mm, deg) = off_by(&truth, &kept[0].cam_from_model);
+        let (turned, got) = turned_in_stereo(&wedge, (&lines, &p), &ev, misread);
+        let (mm, deg) = off_by(&truth, &got);
         assert!(turned == [true] && mm < 0.05 && deg < 0.05, "turned back to {mm:.3} mm, {deg:.3} deg off");
     }
 
@@ -581,10 +594,7 @@ mod tests {
         let ev = ImageEvidence::new(&left, &left_edges, Vec::new())
             .with_right(RightImage { ev: ImageEvidence::new(&right, &right_edges, Vec::new()), right_from_cam });
         let p = MatchParams::default();
-        let slope_lines: Vec<Seg> = true_lines(&wedge, &truth)
-            .into_iter()
-            .filter(|l| support_at(&wedge, &misread, std::slice::from_ref(l), &p).0 > 0.5 * (l.b - l.a).norm())
-            .collect();
+        let slope_lines = lines_along(&wedge, &misread, true_lines(&wedge, &truth), &p);
         let start = misread * crate::matcher::turns::of(&wedge)[4];
         let image_support = |pose: &Isometry3<f64>| crate::matcher::verify::image_support(&wedge, pose, &ev);
         let (now, then) = (image_support(&misread), image_support(&start));
@@ -592,10 +602,8 @@ mod tests {
         let support = |pose: &Isometry3<f64>| support_at(&wedge, pose, &slope_lines, &p).0;
         let kept_share = support(&start) / support(&misread);
         assert!(kept_share >= APART_START_SUPPORT, "it keeps {kept_share:.2} of the 3D support");
-        let mut kept = [report(&wedge, misread)];
-        let turns = crate::matcher::shading::TurnedCandidates::default();
-        let turned = turn_in_stereo(std::slice::from_ref(&wedge), (&slope_lines, &p), &ev, &turns, &mut kept);
-        let (mm, deg) = off_by(&truth, &kept[0].cam_from_model);
+        let (turned, got) = turned_in_stereo(&wedge, (&slope_lines, &p), &ev, misread);
+        let (mm, deg) = off_by(&truth, &got);
         assert!(turned == [true] && mm < 0.05 && deg < 0.05, "turned back to {mm:.3} mm, {deg:.3} deg off");
     }
 
