@@ -46,6 +46,14 @@ impl PlumbBob {
         (xd, yd)
     }
 
+    /// How the ideal point moves per move of the distorted one, at ideal point `(x, y)`: the
+    /// inverse of [`Self::jacobian`] (`None` where the lens folds).
+    pub fn inverse_jacobian(&self, x: f64, y: f64) -> Option<[[f64; 2]; 2]> {
+        let [[a, b], [c, d]] = self.jacobian(x, y);
+        let det = a * d - b * c;
+        (det.abs() >= 1e-9).then(|| [[d / det, -b / det], [-c / det, a / det]])
+    }
+
     /// The Jacobian of [`Self::distort`] at `(x, y)`: `[[dxd/dx, dxd/dy], [dyd/dx, dyd/dy]]`.
     fn jacobian(&self, x: f64, y: f64) -> [[f64; 2]; 2] {
         let r2 = x * x + y * y;
@@ -69,7 +77,15 @@ impl PlumbBob {
     /// distorted point, to 1e-12 (a millionth of a pixel at any focal length used here). `None`
     /// where it does not converge: beyond the fold of a strongly distorting lens.
     pub fn undistort(&self, xd: f64, yd: f64) -> Option<(f64, f64)> {
-        let (mut x, mut y) = (xd, yd);
+        self.undistort_from((xd, yd), (xd, yd))
+    }
+
+    /// [`Self::undistort`] of `(xd, yd)` with Newton's method started at `start`, to the same
+    /// tolerance. Started from a neighbouring point's answer, carried over by
+    /// [`Self::inverse_jacobian`], it takes two steps where from the distorted point it takes
+    /// four or five (a lens of k1 = -0.2 moves the image's corners 9 px).
+    pub fn undistort_from(&self, (xd, yd): (f64, f64), start: (f64, f64)) -> Option<(f64, f64)> {
+        let (mut x, mut y) = start;
         for _ in 0..30 {
             let (fx, fy) = self.distort(x, y);
             let (ex, ey) = (fx - xd, fy - yd);
@@ -103,6 +119,36 @@ mod tests {
                 let (xd, yd) = LENS.distort(x, y);
                 let (ux, uy) = LENS.undistort(xd, yd).unwrap();
                 assert!((ux - x).abs() < 1e-11 && (uy - y).abs() < 1e-11, "({x}, {y}) came back as ({ux}, {uy})");
+            }
+        }
+    }
+
+    #[test]
+    fn undistorting_from_a_neighbours_answer_finds_the_same_point() {
+        // Each point of a row started from the one before it, carried over by the inverse
+        // Jacobian, as the rectification walks an image's edgels.
+        let mut last: Option<((f64, f64), (f64, f64))> = None;
+        for i in -30..=30 {
+            let d = LENS.distort(i as f64 * 0.011, 0.25);
+            let start = last.map_or(d, |(ld, lu)| {
+                let j = LENS.inverse_jacobian(lu.0, lu.1).unwrap();
+                let (dx, dy) = (d.0 - ld.0, d.1 - ld.1);
+                (lu.0 + j[0][0] * dx + j[0][1] * dy, lu.1 + j[1][0] * dx + j[1][1] * dy)
+            });
+            let (from_start, alone) = (LENS.undistort_from(d, start).unwrap(), LENS.undistort(d.0, d.1).unwrap());
+            assert!((from_start.0 - alone.0).abs() < 1e-11 && (from_start.1 - alone.1).abs() < 1e-11);
+            last = Some((d, from_start));
+        }
+    }
+
+    #[test]
+    fn the_inverse_jacobian_undoes_the_jacobian() {
+        let (x, y) = (-0.27, 0.19);
+        let (j, inv) = (LENS.jacobian(x, y), LENS.inverse_jacobian(x, y).unwrap());
+        for r in 0..2 {
+            for c in 0..2 {
+                let product = j[r][0] * inv[0][c] + j[r][1] * inv[1][c];
+                assert!((product - if r == c { 1.0 } else { 0.0 }).abs() < 1e-12);
             }
         }
     }
