@@ -145,9 +145,9 @@ mod tests {
     fn the_inverse_jacobian_undoes_the_jacobian() {
         let (x, y) = (-0.27, 0.19);
         let (j, inv) = (LENS.jacobian(x, y), LENS.inverse_jacobian(x, y).unwrap());
-        for r in 0..2 {
+        for (r, row) in j.iter().enumerate() {
             for c in 0..2 {
-                let product = j[r][0] * inv[0][c] + j[r][1] * inv[1][c];
+                let product = row[0] * inv[0][c] + row[1] * inv[1][c];
                 assert!((product - if r == c { 1.0 } else { 0.0 }).abs() < 1e-12);
             }
         }

@@ -161,8 +161,11 @@ impl Rectification {
 struct LensWalk<'c> {
     cam: &'c PinholeCamera,
     /// The last pixel, its ideal normalised point and the inverse Jacobian there.
-    last: Option<((f64, f64), (f64, f64), [[f64; 2]; 2])>,
+    last: Option<LastPixel>,
 }
+
+/// See [`LensWalk::last`].
+type LastPixel = ((f64, f64), (f64, f64), [[f64; 2]; 2]);
 
 /// A pixel this near the last one (in each of `u`, `v`) starts from its answer.
 const NEAR_PX: f64 = 16.0;
