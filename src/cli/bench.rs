@@ -10,7 +10,8 @@ use std::time::Instant;
 pub enum BenchTarget {
     /// Median time to render the stereo pair of the default scene (images, depth and id maps).
     Render(BenchArgs),
-    /// Median times of the vision front end on the default scene.
+    /// Median times of the vision front end on the default scene, with the cell's table known as
+    /// `marvin run` knows it (the disparity search over it, its soft lines set apart).
     ///
     /// `canny`: Canny on one 512x512 image, one thread. `front_end`: the whole front end on the
     /// stereo pair (both Cannys, strings, rectification, PMF, 2D and 3D lines) in 8 slices and
@@ -244,6 +245,11 @@ fn vision(args: &BenchArgs) -> anyhow::Result<()> {
     let left = vision::GreyImage::new(l.width, l.height, l.image).expect("a rendered frame is whole");
     let right = vision::GreyImage::new(r.width, r.height, r.image).expect("a rendered frame is whole");
     let params = vision::CannyParams::default();
+    // The cell's table, as `marvin run` has it from the hand-eye calibration (here the world's
+    // top, where the calibration's left camera stands): the front end searches disparities
+    // over the table and sets its soft lines apart, and the matcher rests parts on it.
+    let cam_from_table = calib.left.cam_from_world();
+    let workspace = marvin::engine::perception::workspace(Some(&cam_from_table));
     // Buffers reused from run to run, as a pipeline seeing frame after frame does.
     let (mut ws, mut edges) = (vision::front_end::canny::CannyWorkspace::default(), vision::EdgeMap::default());
     let canny = median_ms(args.runs as usize, || {
@@ -252,13 +258,12 @@ fn vision(args: &BenchArgs) -> anyhow::Result<()> {
     });
     let mut whole_stages = StageTimes::default();
     let whole = median_ms(args.runs as usize, || {
-        whole_stages.add(&marvin::front_end::run(&left, &right, &calib, &Default::default(), &params).timings_ms);
+        whole_stages.add(&marvin::front_end::run(&left, &right, &calib, &workspace, &params).timings_ms);
     });
     let mut sliced_stages = StageTimes::default();
     let sliced = median_ms(args.runs as usize, || {
-        sliced_stages.add(
-            &vision::front_end::slices::run_sliced(&left, &right, &calib, &Default::default(), &params, 8).timings_ms,
-        );
+        sliced_stages
+            .add(&vision::front_end::slices::run_sliced(&left, &right, &calib, &workspace, &params, 8).timings_ms);
     });
     let mut results = vec![("canny", canny)];
     for name in ["strings", "rectify", "pmf", "geom2d", "geom3d"] {
@@ -282,8 +287,8 @@ fn vision(args: &BenchArgs) -> anyhow::Result<()> {
     // left image's edgels for verification; and the whole cycle, stereo pair in, located
     // objects out.
     let models = super::scene::matcher_models(&s.scn.library, None);
-    let mp = marvin::engine::perception::part_params(Some(&calib.left.cam_from_world()));
-    let fe = vision::front_end::slices::run_sliced(&left, &right, &calib, &Default::default(), &params, 8);
+    let mp = marvin::engine::perception::part_params(Some(&cam_from_table));
+    let fe = vision::front_end::slices::run_sliced(&left, &right, &calib, &workspace, &params, 8);
     let lines: Vec<vision::matcher::Seg> =
         fe.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
     let evidence = vision::matcher::verify::ImageEvidence::of_pair(&calib, &fe);
@@ -294,7 +299,7 @@ fn vision(args: &BenchArgs) -> anyhow::Result<()> {
         std::hint::black_box(vision::matcher::locate_all(&models, &lines, &mp, Some(&evidence)));
     });
     let cycle = median_ms(args.runs as usize, || {
-        let fe = vision::front_end::slices::run_sliced(&left, &right, &calib, &Default::default(), &params, 8);
+        let fe = vision::front_end::slices::run_sliced(&left, &right, &calib, &workspace, &params, 8);
         let lines: Vec<vision::matcher::Seg> =
             fe.lines3d.iter().map(|l| vision::matcher::Seg::new(l.start(), l.end())).collect();
         let evidence = vision::matcher::verify::ImageEvidence::of_pair(&calib, &fe);
