@@ -272,6 +272,26 @@ pub fn refine_in_views(
     (search, stop): (f64, (f64, f64)),
     keep: &(dyn Fn(usize, usize, &Point3<f64>) -> bool + Sync),
 ) -> Option<Isometry3<f64>> {
+    refine_in_views_above(model, pose, views, (search, stop), keep, None)
+}
+
+/// A floor no corner of the model may go under: a table (its frame the left camera's) and a
+/// height above its top (metres; negative under it), where the parts rest.
+pub(crate) type Floor<'t> = (&'t super::model::Table, f64);
+
+/// A corner under the [`Floor`] is pulled up onto it this much harder than a sample onto its
+/// edgel, per pixel it lies under: the floor is where the parts rest, not a guess.
+const FLOOR_WEIGHT: f64 = 3.0;
+
+/// [`refine_in_views`] with each corner of the model that lies under `floor` pulled up onto it.
+pub(crate) fn refine_in_views_above(
+    model: &MatcherModel,
+    pose: &Isometry3<f64>,
+    views: &[View],
+    (search, stop): (f64, (f64, f64)),
+    keep: &(dyn Fn(usize, usize, &Point3<f64>) -> bool + Sync),
+    floor: Option<Floor>,
+) -> Option<Isometry3<f64>> {
     use rayon::prelude::*;
     let rows_at = |pose: &Isometry3<f64>| {
         // The views' rows gathered in parallel, then added in the views' order.
@@ -284,14 +304,32 @@ pub fn refine_in_views(
                 rows
             })
             .collect();
-        let rows = per_view.into_iter().fold(Rows::new(), |all, v| Rows {
+        let mut rows = per_view.into_iter().fold(Rows::new(), |all, v| Rows {
             normal: all.normal + v.normal,
             rhs: all.rhs + v.rhs,
             count: all.count + v.count,
         });
-        (rows.count >= 12 * views.len()).then_some(rows)
+        let enough = rows.count >= 12 * views.len();
+        if let (Some((table, level)), Some(v)) = (floor, views.first()) {
+            floor_rows(model, pose, (table, level), v.ev.cam.fx, &mut rows);
+        }
+        enough.then_some(rows)
     };
     gauss_newton(pose, rows_at, stop)
+}
+
+/// Each corner of `model` at `pose` lying under the floor pulled up onto it, along the table's
+/// up, in pixel-sized units (`fx / z` pixels per metre) times [`FLOOR_WEIGHT`].
+fn floor_rows(model: &MatcherModel, pose: &Isometry3<f64>, (table, level): Floor, fx: f64, rows: &mut Rows) {
+    let up = Vector3::from(table.up);
+    for c in &model.corners {
+        let x = pose * c;
+        let under = level - table.height_of(&x);
+        if under > 0.0 {
+            let scale = FLOOR_WEIGHT * fx / x.z.max(1e-3);
+            rows.add(motion_row(&x, &up) * scale, under * scale);
+        }
+    }
 }
 
 /// Steps of the stereo fit small enough to stop at (radians, metres): the calibration flag's,
@@ -301,6 +339,44 @@ pub const FINE_STOP: (f64, f64) = (1e-6, 1e-7);
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A wedge whose images both show it 3 mm down into the table, every sample pulling it
+    /// down: fitted alone it sinks with them; held above the floor, its lowest corner stays
+    /// within a millimetre of the top (a soft hold, [`FLOOR_WEIGHT`], against a hundred-odd
+    /// samples; where a reading sinks, few edges pull it there).
+    #[test]
+    fn corners_are_held_above_the_floor() {
+        use crate::matcher::fixtures::{model, verged_pair};
+        use crate::matcher::verify::{RightImage, drawn::model_edges};
+        let wedge = model("wedge");
+        let (left, right) = verged_pair();
+        let table = super::super::model::Table::from_cam_from_table(&left.cam_from_world());
+        let on_top = left.cam_from_world()
+            * Isometry3::from_parts(
+                Translation3::new(0.01, 0.02, 0.0),
+                UnitQuaternion::from_euler_angles(0.0, 0.0, 0.7),
+            );
+        let lowest = |pose: &Isometry3<f64>| super::super::table::lowest_height(&table, &wedge, pose);
+        let up = Vector3::from(table.up);
+        let resting = Translation3::from(-up * lowest(&on_top)) * on_top;
+        let sunk = Translation3::from(-up * 0.003) * resting;
+        let right_from_cam = right.cam_from_world() * left.world_from_cam;
+        let (left_edges, _) = model_edges(&wedge, &sunk, &left);
+        let (right_edges, _) = model_edges(&wedge, &(right_from_cam * sunk), &right);
+        let ev = ImageEvidence::new(&left, &left_edges, Vec::new())
+            .with_right(RightImage { ev: ImageEvidence::new(&right, &right_edges, Vec::new()), right_from_cam });
+        let right_ev = &ev.right.as_ref().unwrap().ev;
+        let views = [
+            View { ev: &ev, cam_from_left: Isometry3::identity() },
+            View { ev: right_ev, cam_from_left: right_from_cam },
+        ];
+        let fit =
+            |floor| refine_in_views_above(&wedge, &resting, &views, (3.0, FINE_STOP), &|_, _, _| true, floor).unwrap();
+        let alone = lowest(&fit(None));
+        assert!((alone + 0.003).abs() < 2e-4, "fitted alone, the lowest corner at {:.2} mm", alone * 1e3);
+        let held = lowest(&fit(Some((&table, 0.0))));
+        assert!(held > -1e-3, "held, the lowest corner at {:.2} mm", held * 1e3);
+    }
 
     /// From 3 degrees and 3 mm off, the image and one true 3D line bring a widget back to
     /// within a fraction of a millimetre and degree of where its edgels are.

@@ -478,7 +478,7 @@ impl Look<'_> {
             return Judged::Faint;
         }
         let others: Vec<Vec<&Solid>> = solids.iter().map(|s| s.iter().collect()).collect();
-        let pose = laid_flat(self.table, model, &super::polish::polished(model, start, &others, &self.views));
+        let pose = laid_flat(self.table, model, &super::polish::polished(model, start, &others, &self.views, None));
         if tried.iter().any(|t| super::table_look::same_place(t, &pose)) {
             return Judged::Not;
         }

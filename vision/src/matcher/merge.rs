@@ -97,6 +97,7 @@ fn locate_all_in_pool(
         super::polish::polish_in_stereo(models, (scene, p), ev, &mut kept);
         // A report turned in stereo is judged on its turned reading alone.
         let in_stereo = super::polish::turn_in_stereo(models, (scene, p), ev, &turns, &mut kept);
+        super::polish::lift_sunk(models, (scene, p), ev, &mut kept);
         for ((before, r), turned) in unpolished.iter_mut().zip(&kept).zip(in_stereo) {
             if turned {
                 *before = r.cam_from_model;

@@ -15,7 +15,7 @@
 //! on a part 60 mm long, and parts settled a little into it); of the 18 false reports on
 //! `widgets.toml` 1-500, six lay 17-40 mm under it and three 2-6 mm.
 
-use super::model::{MatcherModel, Table};
+use super::model::{Located, MatcherModel, Table};
 use nalgebra::{Isometry3, Matrix3, Rotation3, Vector3};
 
 /// How far (metres) a reading's lowest corner may lie under the table top: see the module's
@@ -52,6 +52,27 @@ pub(crate) fn lowest_height(table: &Table, model: &MatcherModel, pose: &Isometry
     let deepest = model.corners.iter().map(|c| down.dot(&c.coords)).fold(f64::MIN, f64::max);
     up.dot(&pose.translation.vector) + table.camera_height_m - deepest
 }
+
+/// The scene's reports' lowest corners (metres above `table`'s top, median) where they lie
+/// within [`NEAR_TOP_M`] of it, if [`MIN_RESTING`] do: the top as the parts find it. The
+/// table the hand-eye calibration places may lie a millimetre off (the ideal cell's fixture:
+/// +1.04 mm, docs/TUNING.md "Dense false reports: sunk readings..."); the parts on it do not.
+pub(crate) fn resting_level(models: &[MatcherModel], kept: &[Located], table: &Table) -> Option<f64> {
+    let mut heights: Vec<f64> = kept
+        .iter()
+        .filter_map(|r| {
+            let model = models.iter().find(|m| m.name == r.model)?;
+            Some(lowest_height(table, model, &r.cam_from_model))
+        })
+        .filter(|h| h.abs() <= NEAR_TOP_M)
+        .collect();
+    heights.sort_by(f64::total_cmp);
+    (heights.len() >= MIN_RESTING).then(|| heights[heights.len() / 2])
+}
+
+/// See [`resting_level`], metres and reports.
+const NEAR_TOP_M: f64 = 0.004;
+const MIN_RESTING: usize = 3;
 
 /// The least turn taking unit vector `from` onto unit vector `to` (Rodrigues' formula, with
 /// the cosine and sine of the angle their dot and cross products give). Why not nalgebra's
