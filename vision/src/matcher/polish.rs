@@ -83,9 +83,9 @@ pub(crate) fn polish_those(
 /// (`marvin eval locate` through tuning seed 1's calibrations: realistic `widgets.toml` 1-1100,
 /// `dense.toml` 1-200; ideal `widgets.toml` 1-400, `dense.toml` 1-160) four near misses came
 /// right (realistic `widgets.toml` 547, 740, 893, 991: 5.3-7.1 deg off before; 271 with
-/// [`LIFT_SLACK`]) and nothing else changed. Held so in the first polish, before the turns, it lifted two wedges read with
-/// bottom and slope swapped out of the table, where the turn that rests no longer took them
-/// (seed 627).
+/// [`LIFT_SLACK`]) and nothing else changed. Held so in the first polish, before the turns,
+/// it lifted two wedges read with bottom and slope swapped out of the table, where the turn
+/// that rests no longer took them (seed 627).
 pub(crate) fn lift_sunk(
     models: &[MatcherModel],
     (scene, p): (&[Seg], &MatchParams),
@@ -96,12 +96,7 @@ pub(crate) fn lift_sunk(
     let Some(level) = super::table::resting_level(models, kept, table) else { return };
     let sunk: Vec<bool> = kept
         .iter()
-        .map(|r| {
-            models
-                .iter()
-                .find(|m| m.name == r.model)
-                .is_some_and(|m| super::table::lowest_height(table, m, &r.cam_from_model) < level - SUNK_M)
-        })
+        .map(|r| models.iter().find(|m| m.name == r.model).is_some_and(|m| sinks((table, level), m, &r.cam_from_model)))
         .collect();
     polish_marked(models, (scene, p), ev, kept, (&sunk, Some((table, level))));
 }
@@ -294,10 +289,10 @@ pub(crate) fn turn_in_stereo(
         .map(|(i, r)| {
             let model = model_of(r)?;
             let others = others_than(&solids, i);
-            let height =
-                |pose: &Isometry3<f64>| level.map(|(t, level)| super::table::lowest_height(t, model, pose) - level);
-            let rests = |pose: &Isometry3<f64>| height(pose).is_some_and(|h| h >= -RESTS_M);
-            let sunk = height(&r.cam_from_model).is_some_and(|h| h < -SUNK_M);
+            let rests = |pose: &Isometry3<f64>| {
+                level.is_some_and(|(t, level)| super::table::lowest_height(t, model, pose) >= level - RESTS_M)
+            };
+            let sunk = level.is_some_and(|level| sinks(level, model, &r.cam_from_model));
             best_turn(model, (scene, p), (&views, &others), turns, (&r.cam_from_model, sunk.then_some(&rests)))
         })
         .collect();
@@ -320,8 +315,8 @@ pub(crate) fn turn_in_stereo(
         .collect()
 }
 
-/// A report whose lowest corner lies this far (metres) under the scene's [`super::table::resting_level`] is
-/// sunk: no part lies in the table. Such a report may be replaced by a turn that rests (its
+/// A report whose lowest corner lies this far (metres) under the scene's
+/// [`super::table::resting_level`] is sunk ([`sinks`]): no part lies in the table. Such a report may be replaced by a turn that rests (its
 /// lowest corner no more than [`RESTS_M`] under the level) where the two tie, the turn keeping
 /// [`TURN_KEEP_SUPPORT`] of the report's 3D support and [`SUNK_TIE_SLACK`] of its share along
 /// edgels in view; every turn of a sunk report is refitted, wherever it starts.
@@ -337,6 +332,11 @@ const RESTS_M: f64 = 0.0008;
 /// See [`SUNK_M`]: the share along edgels in view, summed over both images, that a resting
 /// turn may fall short of a sunk report's.
 const SUNK_TIE_SLACK: f64 = 0.05;
+
+/// Whether `model` at `pose` lies sunk ([`SUNK_M`]) under `level`, a height above `table`'s top.
+fn sinks((table, level): (&super::model::Table, f64), model: &MatcherModel, pose: &Isometry3<f64>) -> bool {
+    super::table::lowest_height(table, model, pose) < level - SUNK_M
+}
 
 /// Whether a pose rests on the table (see [`SUNK_M`]).
 type Rests<'a> = &'a (dyn Fn(&Isometry3<f64>) -> bool + Sync);
