@@ -84,6 +84,7 @@ fn locate_all_in_pool(
             }
         }
         super::superset::settle_larger(models, (scene, p), ev, super::superset::MAX_SUPPORT, &mut kept, 0);
+        super::covering::settle_covered(models, (scene, p), ev, &mut kept, 0);
     }
     if let Some(ev) = image {
         let turns = super::shading::TurnedCandidates::default();
@@ -201,6 +202,7 @@ fn look_again_from_the_image(
         }
     }
     super::superset::settle_larger(models, (scene, p), ev, super::superset::MAX_SUPPORT, kept, first_new);
+    super::covering::settle_covered(models, (scene, p), ev, kept, first_new);
     let mut i = first_new;
     while i < kept.len() {
         if super::shading::fits_light(models, ev, (light, RIVAL_MAX_SUPPORT), kept, i) {

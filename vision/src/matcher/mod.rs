@@ -40,6 +40,8 @@
 //! - [`depths`]: stereo's depths at the left image's matched edgels.
 //! - [`turns`]: the half turns that carry a part most nearly onto itself (what it is misread as).
 //! - [`superset`]: a part read as a smaller model its shape holds (a bracket for a channel).
+//! - [`covering`]: a part read as another model whose shape covers much of its own (a block
+//!   for a wedge), read again as that model where the image shows it better.
 //! - [`turnover`]: a part read turned over, turned back where the edgels' depths or the image say so.
 //! - [`light`]: the scene's light as faces' grey levels show it.
 //! - [`shading`]: the grey levels of a reading's faces, read off the edgels beside its edges.
@@ -60,6 +62,7 @@
 //! other way round; within it, [`model`] is what the others share and imports none of them.
 
 pub mod contrast;
+pub mod covering;
 pub mod depths;
 pub mod hypotheses;
 pub mod image_fit;

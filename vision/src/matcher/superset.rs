@@ -66,30 +66,38 @@ pub(crate) const MAX_SUPPORT: f64 = 0.6;
 const APART_PX: f64 = 3.0;
 
 /// Poses of `outer` in `inner`'s model frame at which `outer`'s wireframe runs along
-/// [`HOLDS`] of `inner`'s (`inner_from_outer`), found once per pair of models (by name and
-/// length) and kept.
+/// [`HOLDS`] of `inner`'s (`inner_from_outer`), where `outer` is the larger by [`LARGER_BY`].
 pub(crate) fn holding_poses(inner: &MatcherModel, outer: &MatcherModel, p: &MatchParams) -> Vec<Isometry3<f64>> {
-    type Key = (String, String, u64, u64);
+    if outer.total_length < LARGER_BY * inner.total_length {
+        return Vec::new();
+    }
+    poses_along(inner, outer, p, HOLDS)
+}
+
+/// Poses of `outer` in `inner`'s model frame (`inner_from_outer`) at which `inner`, sought
+/// among `outer`'s lines by its own search, finds `share` of its length along them or more;
+/// found once per pair of models (by name and length) and share, and kept.
+pub(crate) fn poses_along(
+    inner: &MatcherModel,
+    outer: &MatcherModel,
+    p: &MatchParams,
+    share: f64,
+) -> Vec<Isometry3<f64>> {
+    type Key = (String, String, u64, u64, u64);
     static KNOWN: OnceLock<Mutex<HashMap<Key, Vec<Isometry3<f64>>>>> = OnceLock::new();
-    let key = (inner.name.clone(), outer.name.clone(), inner.total_length.to_bits(), outer.total_length.to_bits());
+    let lengths = (inner.total_length.to_bits(), outer.total_length.to_bits());
+    let key = (inner.name.clone(), outer.name.clone(), lengths.0, lengths.1, share.to_bits());
     let known = KNOWN.get_or_init(Default::default);
     if let Some(poses) = known.lock().unwrap_or_else(|e| e.into_inner()).get(&key) {
         return poses.clone();
     }
-    let poses = if outer.total_length < LARGER_BY * inner.total_length {
-        Vec::new()
-    } else {
-        // The smaller model sought among the larger one's lines: where it is found, the larger
-        // one holds it.
-        let wireframe: Vec<Seg> = outer.lines.iter().take(outer.first_marking).map(|l| Seg::new(l.a, l.b)).collect();
-        let bare = MatchParams { table: None, ..*p };
-        let found = super::search::locate(inner, &wireframe, &bare, None);
-        found
-            .into_iter()
-            .filter(|l| l.support >= HOLDS * inner.total_length)
-            .map(|l| l.cam_from_model.inverse())
-            .collect()
-    };
+    let wireframe: Vec<Seg> = outer.lines.iter().take(outer.first_marking).map(|l| Seg::new(l.a, l.b)).collect();
+    let bare = MatchParams { table: None, ..*p };
+    let poses: Vec<Isometry3<f64>> = super::search::locate(inner, &wireframe, &bare, None)
+        .into_iter()
+        .filter(|l| l.support >= share * inner.total_length)
+        .map(|l| l.cam_from_model.inverse())
+        .collect();
     known.lock().unwrap_or_else(|e| e.into_inner()).insert(key, poses.clone());
     poses
 }
@@ -146,6 +154,19 @@ impl Body {
     }
 }
 
+/// The reports of `kept` other than `i`, with their models.
+pub(crate) fn others_than<'a>(
+    models: &'a [MatcherModel],
+    kept: &'a [Located],
+    i: usize,
+) -> Vec<(&'a MatcherModel, &'a Isometry3<f64>)> {
+    kept.iter()
+        .enumerate()
+        .filter(|(k, _)| *k != i)
+        .filter_map(|(_, l)| models.iter().find(|m| m.name == l.model).map(|m| (m, &l.cam_from_model)))
+        .collect()
+}
+
 /// [`Larger`] for report `i` of `kept`.
 pub(crate) fn larger_reading(
     models: &[MatcherModel],
@@ -169,12 +190,7 @@ pub(crate) fn larger_reading(
     if around.is_empty() {
         return Larger::No;
     }
-    let others: Vec<(&MatcherModel, &Isometry3<f64>)> = kept
-        .iter()
-        .enumerate()
-        .filter(|(k, _)| *k != i)
-        .filter_map(|(_, l)| models.iter().find(|m| m.name == l.model).map(|m| (m, &l.cam_from_model)))
-        .collect();
+    let others = others_than(models, kept, i);
     let solids: Vec<Solid> = others.iter().map(|(m, pose)| Solid::new(m, pose)).collect();
     let solids: Vec<&Solid> = solids.iter().collect();
     let explained = super::verify::Explained::of(others.iter().copied(), ev.cam);
