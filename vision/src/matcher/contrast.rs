@@ -162,15 +162,7 @@ mod tests {
     }
 
     fn located(model: &MatcherModel, pose: Isometry3<f64>) -> Located {
-        Located {
-            model: model.name.clone(),
-            cam_from_model: pose,
-            support: 0.0,
-            support_fraction: 0.0,
-            scene_lines: Vec::new(),
-            image_support: 1.0,
-            grasps: Vec::new(),
-        }
+        crate::matcher::fixtures::report(model, pose)
     }
 
     /// Drawn on a table of 90 grey levels under a light from the cameras' side, the block's

@@ -11,6 +11,19 @@ pub(crate) fn model(name: &str) -> MatcherModel {
     MatcherModel::from_model(lib.get(name).unwrap_or_else(|| panic!("no model `{name}` in the library")))
 }
 
+/// A report of `model` at `pose` (`cam`) on no 3D evidence, fully borne out in the image.
+pub(crate) fn report(model: &MatcherModel, pose: Isometry3<f64>) -> crate::matcher::Located {
+    crate::matcher::Located {
+        model: model.name.clone(),
+        cam_from_model: pose,
+        support: 0.0,
+        support_fraction: 0.0,
+        scene_lines: Vec::new(),
+        image_support: 1.0,
+        grasps: Vec::new(),
+    }
+}
+
 /// The mean albedo of a library model's faces: how the fixtures draw it (the matcher itself
 /// does not know a part's material).
 pub(crate) fn albedo(name: &str) -> f64 {

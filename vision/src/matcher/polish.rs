@@ -290,9 +290,14 @@ pub(crate) fn turn_in_stereo(
             let model = model_of(r)?;
             let others = others_than(&solids, i);
             let rests = |pose: &Isometry3<f64>| {
-                level.is_some_and(|(t, level)| super::table::lowest_height(t, model, pose) >= level - RESTS_M)
+                level.is_some_and(|(t, level)| {
+                    super::table::lowest_height(t, model, pose) >= level - RESTS_M
+                        && !super::table::floats_flat((t, level), model, pose)
+                })
             };
-            let sunk = level.is_some_and(|level| sinks(level, model, &r.cam_from_model));
+            let off_the_table =
+                |l| sinks(l, model, &r.cam_from_model) || super::table::floats_flat(l, model, &r.cam_from_model);
+            let sunk = level.is_some_and(off_the_table);
             best_turn(model, (scene, p), (&views, &others), turns, (&r.cam_from_model, sunk.then_some(&rests)))
         })
         .collect();
