@@ -71,10 +71,7 @@ fn covering_reading(
         .into_iter()
         .filter_map(|(m, start)| {
             let c = turns.refit(m, (scene, p), ev, start)?;
-            let room = others.iter().all(|(o, pose)| {
-                super::overlap::space_shared(m, &c.pose, o, pose) <= super::overlap::MAX_SPACE_SHARED
-                    && super::overlap::space_shared(o, pose, m, &c.pose) <= super::overlap::MAX_SPACE_SHARED
-            });
+            let room = !others.iter().any(|(o, pose)| super::overlap::fill_the_same_space(m, &c.pose, o, pose));
             let readings = ((own, &r.cam_from_model), (m, &c.pose));
             let gain = super::ties::where_apart(readings, ev, &hiding, &explained);
             let as_much = c.score >= super::ties::TIE * r.support;
@@ -149,13 +146,10 @@ mod tests {
         let p = MatchParams::default();
         let (support, _) = crate::matcher::support::support_at(&wedge, &wedge_pose, &scene, &p);
         let report = Located {
-            model: wedge.name.clone(),
-            cam_from_model: wedge_pose,
             support: support * wedge.total_length,
             support_fraction: support,
-            scene_lines: Vec::new(),
             image_support: 0.6,
-            grasps: Vec::new(),
+            ..crate::matcher::fixtures::report(&wedge, wedge_pose)
         };
         let models = [block.clone(), wedge.clone()];
         let (edges, lines) = drawn::model_edges(&block, &block_pose, &cam);

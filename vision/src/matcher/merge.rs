@@ -14,7 +14,7 @@
 use super::hypotheses::{ScenePairs, scene_pairs};
 use super::model::{Located, MatchParams, MatcherModel, Seg};
 use super::occlusion::{MIN_IN_VIEW, Solid};
-use super::overlap::{MAX_SPACE_SHARED, space_shared};
+use super::overlap::fill_the_same_space;
 use super::search::{Search, locate_from};
 use super::table::through_table;
 use super::verify::{Explained, ImageEvidence, MAX_EXPLAINED, image_support_unhidden};
@@ -352,13 +352,7 @@ fn rival_reading(
             .map(move |l| (m, l))
         })
         .filter(|(m, l)| {
-            let shared = space_shared(m, &l.cam_from_model, own, &r.cam_from_model).max(space_shared(
-                own,
-                &r.cam_from_model,
-                m,
-                &l.cam_from_model,
-            ));
-            shared > MAX_SPACE_SHARED
+            fill_the_same_space(m, &l.cam_from_model, own, &r.cam_from_model)
                 && !through_table(p.table.as_ref(), m, &l.cam_from_model)
                 && l.image_support > r.image_support
                 && super::verify::image_support_at_least(m, &l.cam_from_model, ev, RIVAL_MIN_IMAGE_SUPPORT).is_some()
@@ -562,8 +556,7 @@ fn settle_tie<P: TieCandidate>(
             j != best
                 && q_model.name != b_model.name
                 && q_matched >= super::ties::TIE * b_matched
-                && space_shared(q_model, q_pose, b_model, b_pose).max(space_shared(b_model, b_pose, q_model, q_pose))
-                    > MAX_SPACE_SHARED
+                && fill_the_same_space(q_model, q_pose, b_model, b_pose)
         })
         .collect();
     if rivals.is_empty() {
@@ -625,16 +618,15 @@ pub(crate) fn admissible(models: &[MatcherModel], loc: &Located, kept: &[Located
     let model_of = |name: &str| models.iter().find(|m| m.name == name);
     let Some(model) = model_of(&loc.model) else { return true };
     !kept.iter().any(|k| {
-        model_of(&k.model).is_some_and(|other| {
-            space_shared(model, &loc.cam_from_model, other, &k.cam_from_model) > MAX_SPACE_SHARED
-                || space_shared(other, &k.cam_from_model, model, &loc.cam_from_model) > MAX_SPACE_SHARED
-        })
+        model_of(&k.model)
+            .is_some_and(|other| fill_the_same_space(model, &loc.cam_from_model, other, &k.cam_from_model))
     })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::matcher::overlap::space_shared;
 
     /// A U-channel with one arm's lines missing (hidden) is an L-bracket's shape too: both
     /// matchers report it, and the merge keeps the channel, which explains more of the lines

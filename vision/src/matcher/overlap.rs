@@ -23,6 +23,17 @@ use nalgebra::Isometry3;
 /// share a sliver where solids touch; a second report of one object shares nearly all.
 pub(crate) const MAX_SPACE_SHARED: f64 = 0.2;
 
+/// Whether `a` (at `a_pose`) and `b` (at `b_pose`) share more than [`MAX_SPACE_SHARED`] of
+/// either's interior: both cannot be there.
+pub(crate) fn fill_the_same_space(
+    a: &MatcherModel,
+    a_pose: &Isometry3<f64>,
+    b: &MatcherModel,
+    b_pose: &Isometry3<f64>,
+) -> bool {
+    space_shared(a, a_pose, b, b_pose) > MAX_SPACE_SHARED || space_shared(b, b_pose, a, a_pose) > MAX_SPACE_SHARED
+}
+
 /// The fraction of `a`'s interior points (at `a_pose`) that lie inside `b` (at `b_pose`).
 pub(crate) fn space_shared(
     a: &MatcherModel,

@@ -372,13 +372,10 @@ mod tests {
         let p = MatchParams::default();
         let models = [bracket.clone(), channel.clone()];
         let kept = [Located {
-            model: bracket.name.clone(),
-            cam_from_model: bracket_pose,
             support: 0.2 * bracket.total_length,
             support_fraction: 0.2,
-            scene_lines: Vec::new(),
             image_support: 0.6,
-            grasps: Vec::new(),
+            ..crate::matcher::fixtures::report(&bracket, bracket_pose)
         }];
         let nothing = Explained::of([], &cam);
         // What each image shows beyond the other reading: the channel's arm, the bracket's end.

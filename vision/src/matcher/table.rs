@@ -37,9 +37,14 @@ pub(crate) fn through_table(table: Option<&Table>, model: &MatcherModel, pose: &
 /// down within [`FLAT_TILT_DEG`] and its lowest corner within [`FLAT_NEAR_M`] of the top. (A
 /// pose from two short 3D lines is a few degrees and millimetres off.)
 pub(crate) fn nearly_flat(table: &Table, model: &MatcherModel, pose: &Isometry3<f64>) -> bool {
+    a_resting_face_down(table, model, pose) && lowest_height(table, model, pose).abs() <= FLAT_NEAR_M
+}
+
+/// Whether one of `model`'s resting faces is turned down within [`FLAT_TILT_DEG`] at `pose`.
+fn a_resting_face_down(table: &Table, model: &MatcherModel, pose: &Isometry3<f64>) -> bool {
     let down = pose.rotation.inverse_transform_vector(&-Vector3::from(table.up));
     let cos = FLAT_TILT_DEG.to_radians().cos();
-    model.resting.iter().any(|n| n.dot(&down) >= cos) && lowest_height(table, model, pose).abs() <= FLAT_NEAR_M
+    model.resting.iter().any(|n| n.dot(&down) >= cos)
 }
 
 /// How high `model`'s lowest corner lies above the top of `table` with the model at `pose`
@@ -111,10 +116,8 @@ pub(crate) const HYPOTHESIS_BELOW_M: f64 = 0.015;
 /// [`FLOATS_M`] to [`FLOATS_MAX_M`] above `level` (a height above `table`'s top): held up by
 /// nothing, as no library part is thinner than 25 mm.
 pub(crate) fn floats_flat((table, level): (&Table, f64), model: &MatcherModel, pose: &Isometry3<f64>) -> bool {
-    let down = pose.rotation.inverse_transform_vector(&-Vector3::from(table.up));
-    let cos = FLAT_TILT_DEG.to_radians().cos();
     let height = lowest_height(table, model, pose) - level;
-    (FLOATS_M..=FLOATS_MAX_M).contains(&height) && model.resting.iter().any(|n| n.dot(&down) >= cos)
+    (FLOATS_M..=FLOATS_MAX_M).contains(&height) && a_resting_face_down(table, model, pose)
 }
 
 /// The reports of `kept` that lie flat above the scene's [`resting_level`] ([`floats_flat`])
