@@ -1,8 +1,8 @@
 //! The end-to-end run, MARVIN's whole cycle: the arm parks out of view, the stereo pair is
 //! captured, the front end and the matcher locate the parts, the next one is chosen (lying
 //! where it could, read on firm evidence, not under another, reachable, best supported) and its
-//! grasp goes over the socket in the `cam` frame; the robot server picks it into the bin; again, until nothing more
-//! is located. Nothing here reads the simulation's truth: poses come from vision, the
+//! grasp goes over the socket in the `cam` frame; the robot server picks it into the bin; again,
+//! until nothing more is located. Nothing here reads the simulation's truth: poses come from vision, the
 //! camera-to-robot transform from calibration. (Evaluation may watch through a hook, and judges afterwards.)
 
 use crate::engine::client::Client;
