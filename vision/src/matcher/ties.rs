@@ -7,7 +7,8 @@
 //! block 0.59. What tells them apart is where they differ: there the wedge's slope showed no
 //! edgel and the block's own edges 0.29 of theirs. The merge ([`super::merge`]) asks this of
 //! the best report and each report of another model that fills the same space on as much 3D
-//! evidence ([`TIE`]).
+//! evidence ([`TIE`]); the turn in stereo ([`super::polish`]) asks it of a report and its own
+//! model turned, in both images ([`shown_where_apart`]).
 
 use super::model::MatcherModel;
 use super::occlusion::Solid;
@@ -62,6 +63,27 @@ pub(crate) fn where_apart(
     let theirs = image_support_beyond(rival, best, ev, hiding, explained, APART_PX, &nothing_taken);
     let own_share = if own.px >= MIN_OWN_PX { own.share } else { 0.0 };
     (theirs.px >= MIN_PX).then_some(theirs.share - own_share)
+}
+
+/// Whether the `turned` reading shows its own edges, where it and the `report` lie apart in
+/// the image, along edgels for [`TIE_GAIN`] more of their
+/// length than the report shows of its own, in each image where it has enough of them in view
+/// ([`where_apart`]), and in one at least.
+pub(crate) fn shown_where_apart(
+    model: &MatcherModel,
+    (report, turned): (&Isometry3<f64>, &Isometry3<f64>),
+    (views, others): (&[super::image_fit::View], &[Vec<&Solid>]),
+) -> bool {
+    let gains: Vec<f64> = views
+        .iter()
+        .zip(others)
+        .filter_map(|(v, hiding)| {
+            let (a, b) = (v.cam_from_left * report, v.cam_from_left * turned);
+            let explained = Explained::of(std::iter::empty(), v.ev.cam);
+            where_apart(((model, &a), (model, &b)), v.ev, hiding, &explained)
+        })
+        .collect();
+    !gains.is_empty() && gains.iter().all(|g| *g > TIE_GAIN)
 }
 
 #[cfg(test)]
