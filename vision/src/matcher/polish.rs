@@ -416,11 +416,11 @@ fn best_turn(
         .map(|(_, pose)| pose)
 }
 
-/// A turn the image shows where it differs from the report ([`super::ties::shown_where_apart`]) replaces it
-/// if it keeps this share of its 3D support (as the turn by image asks, `IMAGE_TURN_KEEP` in
-/// [`super::turnover`]: a wedge resting on its slope, read on its bottom, matched 0.41 m and
-/// turned 0.45, `widgets.toml` tuning seed 153) and runs along edgels for as much of its
-/// wireframe in view in the two images together.
+/// A turn the image shows where it differs from the report
+/// ([`super::ties::shown_where_apart`]) replaces it if it keeps this share of its 3D support
+/// (as the turn by image asks, `IMAGE_TURN_KEEP` in [`super::turnover`]: a wedge resting on
+/// its slope, read on its bottom, matched 0.41 m and turned 0.45, `widgets.toml` tuning seed
+/// 153) and runs along edgels for as much of its wireframe in view in the two images together.
 ///
 /// Why: the whole wireframe's share along edgels weighs mostly the edges the two readings
 /// share; where they differ (a wedge's ends, leaning 21 deg one way or the other) the image
