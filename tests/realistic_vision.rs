@@ -17,20 +17,15 @@ use std::process::Command;
 const CAMERAS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/camera-calib/tests/fixtures/seed3_cameras.json");
 
 fn eval(verb: &str) -> serde_json::Value {
+    eval_on(verb, "worlds/widgets.toml", "310001", &[])
+}
+
+/// `marvin eval <verb> <world> --scenes 10 --seed <seed>` through the measured cameras.
+fn eval_on(verb: &str, world: &str, seed: &str, more: &[&str]) -> serde_json::Value {
     let out = Command::new(env!("CARGO_BIN_EXE_marvin"))
         .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .args([
-            "eval",
-            verb,
-            "worlds/widgets.toml",
-            "--scenes",
-            "10",
-            "--seed",
-            "310001",
-            "--cameras",
-            CAMERAS,
-            "--json",
-        ])
+        .args(["eval", verb, world, "--scenes", "10", "--seed", seed, "--cameras", CAMERAS, "--json"])
+        .args(more)
         .output()
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
@@ -60,6 +55,30 @@ fn the_matcher_locates_parts_in_the_realistic_cell() {
         (doc["located_fraction"].as_f64().unwrap(), doc["false_positive_fraction"].as_f64().unwrap());
     eprintln!("located {located:.3}, false reports {false_reports:.3}");
     assert!(located >= 0.85, "located: {located:.3}");
+    assert!(false_reports <= 0.03, "false reports: {false_reports:.3}");
+}
+
+/// Softer lenses than the cell's (`worlds/soft_lenses.toml`: Gaussian blur of 1.1 and 1.3 px
+/// where the cell's is 0.45), as another camera or renderer may give. Canny's placement of
+/// edgels beside parallel steps took every edge's wider profile for a neighbour's pull and
+/// moved the edgels by up to a pixel, differently in each image; it now models each image's
+/// blur as measured from its own edges (`vision::front_end::blur`). On tuning seeds 1-30
+/// (these cameras): within 0.5 px 0.760 -> 0.939, coverage 0.495 -> 0.671, located (the table
+/// from the images, as `marvin locate --left --right` finds it) 0.837 -> 0.943, 2 false
+/// reports. Seeds 365001-365010, never used for a choice; the limits leave a margin for 10
+/// scenes, each well above what the renderer's blur gave.
+#[test]
+fn vision_sees_through_softer_lenses() {
+    let doc = eval_on("vision", "worlds/soft_lenses.toml", "365001", &[]);
+    let (within, coverage) = (doc["disparity_within_0_5px"].as_f64().unwrap(), doc["coverage"].as_f64().unwrap());
+    eprintln!("soft lenses: within 0.5 px {within:.3}, coverage {coverage:.3}");
+    assert!(within >= 0.90, "disparities within 0.5 px: {within:.3}");
+    assert!(coverage >= 0.60, "coverage: {coverage:.3}");
+    let doc = eval_on("locate", "worlds/soft_lenses.toml", "365001", &["--table-from-images"]);
+    let (located, false_reports) =
+        (doc["located_fraction"].as_f64().unwrap(), doc["false_positive_fraction"].as_f64().unwrap());
+    eprintln!("soft lenses: located {located:.3}, false reports {false_reports:.3}");
+    assert!(located >= 0.88, "located: {located:.3}");
     assert!(false_reports <= 0.03, "false reports: {false_reports:.3}");
 }
 

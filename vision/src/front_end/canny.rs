@@ -5,6 +5,7 @@
 //! Then, beyond MARVIN, each edgel that a parallel step a few pixels away has pulled or pushed
 //! is placed where its own step lies ([`CannyParams::deblur`]).
 
+use super::blur::{Blur, step_response};
 use crate::image::GreyImage;
 use serde::{Deserialize, Serialize};
 
@@ -176,7 +177,8 @@ impl CannyWorkspace {
         self.suppress_non_maxima(img.width, img.height, params.low, out);
         self.hysteresis(out, params.high);
         if params.deblur {
-            self.deblur(params.low, out);
+            let blur = Blur::placing_in(self.extra_blur_variance(params.low, out));
+            self.deblur(params.low, &blur, out);
         }
     }
 
@@ -354,15 +356,37 @@ const FIT_REACH: isize = 5;
 /// Rounds of placing each step in turn ([`place_steps`]).
 const PLACE_ROUNDS: usize = 3;
 
-/// Variance of a rendered step's gradient profile: the Gaussian (1), the pixel's area (1/12)
-/// and the central difference (1/3), as a Gaussian for the cheap test of
-/// [`CannyWorkspace::something_beside`].
-const PROFILE_VARIANCE: f32 = 1.0 + 1.0 / 12.0 + 1.0 / 3.0;
+/// Edgels at least this many times the low threshold measure the image's blur
+/// ([`CannyWorkspace::extra_blur_variance`]): their profiles stand well clear of the noise.
+const MEASURES_BLUR: f32 = 4.0;
 
 impl CannyWorkspace {
+    /// How much more variance than the renderer's step the profiles across the image's edgels
+    /// show ([`super::blur::measured_extra_variance`]), pixels squared: of those of at least
+    /// [`MEASURES_BLUR`] times `low`; none where too few are.
+    fn extra_blur_variance(&self, low: f32, out: &EdgeMap) -> Option<f32> {
+        let (w, h) = (out.width, out.height);
+        let profile = |i: usize| {
+            let (gx, gy) = self.gradient_at(i, w);
+            let (sx, sy) = nearest_pixel_line(gx, gy);
+            let (x, y) = ((i % w) as isize, (i / w) as isize);
+            let inside = |v: isize, s: isize, size: usize| v - 3 * s.abs() >= 1 && v + 3 * s.abs() <= size as isize - 2;
+            let norm = (gx * gx + gy * gy).sqrt();
+            if !inside(x, sx, w) || !inside(y, sy, h) || norm <= 0.0 {
+                return None;
+            }
+            let step = sy * w as isize + sx;
+            let samples = std::array::from_fn(|k| self.mag[(i as isize + (k as isize - 3) * step) as usize]);
+            let (c, s) = (gx / norm, gy / norm);
+            Some((samples, sx as f32 * c + sy as f32 * s, (c, s)))
+        };
+        let strong = out.edgels.iter().zip(&out.pixel).filter(|(e, _)| e.contrast >= MEASURES_BLUR * low);
+        super::blur::measured_extra_variance(strong.filter_map(|(_, &i)| profile(i as usize)))
+    }
+
     /// Moves each edgel that a parallel step a few pixels away has pulled or pushed (see
     /// [`CannyParams::deblur`]) to where its own step lies.
-    fn deblur(&self, low: f32, out: &mut EdgeMap) {
+    fn deblur(&self, low: f32, blur: &Blur, out: &mut EdgeMap) {
         let (w, h) = (out.width, out.height);
         for (e, &i) in out.edgels.iter_mut().zip(&out.pixel) {
             let i = i as usize;
@@ -370,7 +394,7 @@ impl CannyWorkspace {
             let (sx, sy) = nearest_pixel_line(gx, gy);
             let (px, py) = ((i % w) as f32, (i / w) as f32);
             let offset = ((e.x - px) * sx as f32 + (e.y - py) * sy as f32) / (sx * sx + sy * sy) as f32;
-            let placed = self.offset_beside_neighbours(i, (w, h), (gx, gy), (sx, sy), offset, low);
+            let placed = self.offset_beside_neighbours(i, (w, h), (gx, gy), (sx, sy), offset, (low, blur));
             if placed != offset {
                 (e.x, e.y) = (px + placed * sx as f32, py + placed * sy as f32);
                 e.sides = self.sides_at(e.x, e.y, gx, gy, w, h);
@@ -381,7 +405,7 @@ impl CannyWorkspace {
     /// Whether the gradient magnitudes 2 and 3 samples either side of edgel pixel `i` along
     /// its pixel line depart from one blurred step's by enough that another step may lie
     /// there: a cheap test that spares most edgels, which have none, the fit.
-    fn something_beside(&self, i: usize, step: isize, spacing: f32, low: f32) -> bool {
+    fn something_beside(&self, i: usize, step: isize, spacing: f32, (low, blur): (f32, &Blur)) -> bool {
         let m0 = self.mag[i];
         let threshold = low.max(NEIGHBOUR_SHARE * m0);
         [2isize, 3].iter().any(|&k| {
@@ -389,7 +413,7 @@ impl CannyWorkspace {
             if u > NEIGHBOUR_REACH {
                 return false;
             }
-            let expected = m0 * (-u * u / (2.0 * PROFILE_VARIANCE)).exp();
+            let expected = m0 * (-u * u / (2.0 * blur.profile_variance())).exp();
             [i as isize - k * step, i as isize + k * step]
                 .iter()
                 .any(|&j| (self.mag[j as usize] - expected).abs() >= threshold)
@@ -408,7 +432,7 @@ impl CannyWorkspace {
         (gx, gy): (f32, f32),
         (sx, sy): (isize, isize),
         offset: f32,
-        low: f32,
+        (low, blur): (f32, &Blur),
     ) -> f32 {
         const N: usize = (2 * FIT_REACH + 1) as usize;
         let reach = FIT_REACH;
@@ -422,7 +446,7 @@ impl CannyWorkspace {
         let (c, s) = (gx / norm, gy / norm);
         let spacing = sx as f32 * c + sy as f32 * s;
         let step = sy * w as isize + sx;
-        if !self.something_beside(i, step, spacing, low) {
+        if !self.something_beside(i, step, spacing, (low, blur)) {
             return offset;
         }
         let mut d = [0.0f32; N];
@@ -433,7 +457,7 @@ impl CannyWorkspace {
             parallel[k] = d[k] * d[k] >= 0.81 * (ax * ax + ay * ay);
         }
         let u: [f32; N] = std::array::from_fn(|k| (k as isize - reach) as f32 * spacing);
-        let row = ResponseTable::get().row((c, s));
+        let row = blur.row((c, s));
         let peak = step_response(row, 0.0);
         let own = (offset * spacing, d[reach as usize] / peak);
         let residual: [f32; N] = std::array::from_fn(|k| d[k] - own.1 * step_response(row, u[k] - own.0));
@@ -456,64 +480,6 @@ impl CannyWorkspace {
         let placed = steps[0].0 / spacing;
         if (placed - offset).abs() < 1.0 { placed } else { offset }
     }
-}
-
-/// Effective blur of a rendered step before the central differences: the Gaussian (sigma 1)
-/// and the pixel's area (a box, variance 1/12).
-const STEP_BLUR: f64 = 1.040_833;
-
-/// Central-difference gradient along the normal `(c, s)` (absolute values) of a unit step at
-/// signed distance `u`, exactly: each difference spans two pixels, `c` and `s` of them
-/// across the edge.
-fn step_response_exact(u: f64, (c, s): (f64, f64)) -> f64 {
-    let cdf = |t: f64| 0.5 * (1.0 + libm::erf(t / (STEP_BLUR * std::f64::consts::SQRT_2)));
-    let part = |a: f64| a * (cdf(u + a) - cdf(u - a));
-    0.5 * (part(c) + part(s))
-}
-
-/// [`step_response_exact`] tabulated: by the normal's angle from the nearer axis (0-45 deg;
-/// the response is symmetric in `c` and `s`) and by `u` out to [`RESPONSE_REACH`] pixels.
-struct ResponseTable {
-    values: Vec<f32>,
-}
-
-const RESPONSE_REACH: f32 = 8.0;
-const RESPONSE_PER_PX: usize = 32;
-const RESPONSE_ANGLES: usize = 16;
-const RESPONSE_ROW: usize = 2 * RESPONSE_REACH as usize * RESPONSE_PER_PX + 1;
-
-impl ResponseTable {
-    fn get() -> &'static ResponseTable {
-        static TABLE: std::sync::OnceLock<ResponseTable> = std::sync::OnceLock::new();
-        TABLE.get_or_init(|| {
-            let mut values = Vec::with_capacity((RESPONSE_ANGLES + 1) * RESPONSE_ROW);
-            for a in 0..=RESPONSE_ANGLES {
-                let angle = std::f64::consts::FRAC_PI_4 * a as f64 / RESPONSE_ANGLES as f64;
-                for k in 0..RESPONSE_ROW {
-                    let u = k as f64 / RESPONSE_PER_PX as f64 - RESPONSE_REACH as f64;
-                    values.push(step_response_exact(u, (angle.cos(), angle.sin())) as f32);
-                }
-            }
-            ResponseTable { values }
-        })
-    }
-
-    /// The row for the normal `(c, s)`.
-    fn row(&self, (c, s): (f32, f32)) -> &[f32] {
-        let angle = c.abs().min(s.abs()).atan2(c.abs().max(s.abs()));
-        let a = ((angle / std::f32::consts::FRAC_PI_4 * RESPONSE_ANGLES as f32).round() as usize).min(RESPONSE_ANGLES);
-        &self.values[a * RESPONSE_ROW..(a + 1) * RESPONSE_ROW]
-    }
-}
-
-/// A unit step's response at `u` from a [`ResponseTable`] row (zero beyond its reach).
-fn step_response(row: &[f32], u: f32) -> f32 {
-    let t = (u + RESPONSE_REACH) * RESPONSE_PER_PX as f32;
-    if t < 0.0 || t >= (row.len() - 1) as f32 {
-        return 0.0;
-    }
-    let k = t as usize;
-    row[k] + (t - k as f32) * (row[k + 1] - row[k])
 }
 
 /// The steps `(position, amplitude)` whose blurred sum best explains the samples `d` at `u`:
@@ -709,6 +675,55 @@ mod tests {
             } else {
                 assert!((worst.0 - worst.1).abs() < 0.01, "{levels:?} width {width}: moved");
             }
+        }
+    }
+
+    /// A unit step blurred by a Gaussian of `sigma` pixels (none at 0), at signed distance `d`.
+    fn blurred_step(d: f32, sigma: f32) -> f32 {
+        if sigma <= 0.0 { f32::from(d > 0.0) } else { 0.5 * (1.0 + libm::erff(d / (sigma * std::f32::consts::SQRT_2))) }
+    }
+
+    /// The extra blur's variance Canny measures in `img` (pixels squared).
+    fn measured_extra_variance(img: &GreyImage) -> f32 {
+        let params = CannyParams::default();
+        let mut ws = CannyWorkspace::default();
+        let mut map = EdgeMap::default();
+        ws.smooth(img, params.sigma);
+        ws.gradients(img.width, img.height);
+        ws.suppress_non_maxima(img.width, img.height, params.low, &mut map);
+        ws.hysteresis(&mut map, params.high);
+        ws.extra_blur_variance(params.low, &map).unwrap_or(0.0)
+    }
+
+    #[test]
+    fn an_image_blurrier_than_the_renderer_is_measured_so() {
+        for extra_sigma in [0.0f32, 0.45, 0.8, 1.2] {
+            for (angle, offset) in [(0.0f32, 0.3f32), (0.4, 0.17), (0.785, 0.2), (2.5, 0.42)] {
+                let through = (32.0 + offset, 32.0 + offset / 2.0);
+                let img = banded_image(64, (angle, through), 16, |d| 60.0 + 120.0 * blurred_step(d, extra_sigma));
+                let measured = measured_extra_variance(&img);
+                let truth = extra_sigma * extra_sigma;
+                eprintln!("extra sigma {extra_sigma}, angle {angle}: variance {measured:.3} against {truth:.3}");
+                assert!(
+                    (measured - truth).abs() < 0.08 + 0.05 * truth,
+                    "angle {angle}: {measured:.3} against {truth:.3}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn deblurring_leaves_edges_of_a_blurrier_image_where_they_lie() {
+        // A lens blurrier than the renderer's (extra sigma 1.2 px) widens every edge's profile;
+        // taken for the renderer's, that looks like a neighbouring step beside each edgel.
+        let extra_sigma = 1.2f32;
+        for (angle, offset) in [(0.0f32, 0.0f32), (0.0, 0.3), (0.4, 0.17), (1.1, 0.71), (0.785, 0.2), (2.5, 0.42)] {
+            let through = (32.0 + offset, 32.0 + offset / 2.0);
+            let img = banded_image(64, (angle, through), 16, |d| 60.0 + 120.0 * blurred_step(d, extra_sigma));
+            let map = canny(&img, &CannyParams::default());
+            let (rms, n) = rms_distance(&map, angle, through, 64);
+            eprintln!("angle {angle}, offset {offset}: rms {rms:.4} px over {n}");
+            assert!(n >= 40 && rms < 0.05, "angle {angle}, offset {offset}: rms {rms:.3} px over {n}");
         }
     }
 

@@ -2,6 +2,8 @@
 //! in, the 3D lines of the scene (and what led to them) out, as TINA computed them.
 //!
 //! - [`canny`](mod@canny): Canny edges (sigma 1, separable Gaussian) located to sub-pixel acuity.
+//! - `blur`: the image's blur, measured from its strongest edgels, for Canny's placement of
+//!   edgels beside parallel steps.
 //! - [`noise`]: each image's own noise, and Canny's thresholds raised above it.
 //! - [`strings`]: edgels linked into ordered 8-connected edge strings.
 //! - [`photometric`]: the right camera's grey levels as the left's, measured from PMF's own
@@ -18,6 +20,7 @@
 //!
 //! Nothing here knows of the matcher: it takes the front end's output as it is.
 
+mod blur;
 pub mod canny;
 pub mod lines2d;
 pub mod lines3d;
