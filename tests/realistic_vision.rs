@@ -100,14 +100,17 @@ fn the_main_job_clears_the_realistic_table() {
 }
 
 /// Parts packed so that each one's fingers would touch the next: on tuning seed 112 the wedge,
-/// the hex prism and the widget each block another once the rest are picked, and the run used
+/// the hex prism and the widget each blocked another once the rest were picked, and the run used
 /// to stop with the three on the table. Where every part is blocked, the first that plans with
 /// its neighbours left out is picked, its fingers pushing them aside: all seven are cleared,
-/// one of them by such a pick, and none goes to the wrong model.
+/// one of them by such a pick, and none goes to the wrong model. Since Canny models each
+/// image's blur (session 67) seed 112's parts are read a little differently and the run never
+/// comes to that pass; on tuning seed 120 it does, the U-channel and the wedge left, each
+/// blocking the other.
 #[test]
 fn parts_that_block_each_other_are_picked_pushing_the_neighbours_aside() {
     let doc =
-        common::ok(common::marvin().args(["run", "worlds/widgets.toml", "--seed", "112", "--json"]).output().unwrap());
+        common::ok(common::marvin().args(["run", "worlds/widgets.toml", "--seed", "120", "--json"]).output().unwrap());
     let truth = &doc["truth"];
     assert_eq!(truth["wrong_model_picks"].as_u64(), Some(0), "{truth}");
     assert_eq!(truth["in_bin_at_end"], truth["on_table_at_start"], "{truth}");
