@@ -37,19 +37,8 @@ impl Default for CannyParams {
     /// `dense.toml` and `side_light.toml` 200), 5 -> 2.5: located 96.3 / 84.6 / 83.3% -> 96.7 /
     /// 85.7 / 90.0%, false reports 21 / 33 / 19 -> 20 / 25 / 7; 2 (no hysteresis) gave 96.7 /
     /// 85.9 / 90.9% with the same false reports; 3 and 4 less (seeds 1-50).
-    ///
-    /// Then both at 0.7 of that, `low` 1.4 and `high` 1.75 (session 67): under other lamps the
-    /// faces turned from them are nearly as dark as the table, and a blurrier lens lowers every
-    /// edge's gradient by its width (a step's peak gradient goes as one over the blur's sigma).
-    /// The image's own noise still sets a floor ([`CannyParams::for_image`]; the cell's images
-    /// put it at 0.7-0.9). On tuning seeds (`eval locate --seed 1`, tuning seed 1's files),
-    /// 2.0 / 2.5 -> 1.4 / 1.75: realistic `widgets.toml` 1-300 0.9793 / 4 false -> 0.9826 / 4,
-    /// `dense.toml` 1-160 0.9196 / 18 -> 0.9245 / 19, `two_lamps.toml` 1-100 0.9580 / 2 ->
-    /// 0.9638 / 1, its lamps and lenses of 1.0 / 1.2 px 0.9305 / 4 -> 0.9436 / 3. Half of them
-    /// (1.0 / 1.25) located more still (0.9846, 0.9285, 0.9711, 0.9537) but read wedges into
-    /// the soft shadow of the arm's column on the table (3 false reports more in widgets 101-300).
     fn default() -> Self {
-        CannyParams { sigma: 1.0, low: 1.4, high: 1.75, deblur: true }
+        CannyParams { sigma: 1.0, low: 2.0, high: 2.5, deblur: true }
     }
 }
 
