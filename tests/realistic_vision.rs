@@ -104,9 +104,9 @@ fn the_main_job_clears_the_realistic_table() {
 /// to stop with the three on the table. Where every part is blocked, the first that plans with
 /// its neighbours left out is picked, its fingers pushing them aside: all seven are cleared,
 /// one of them by such a pick, and none goes to the wrong model. Once Canny modelled each
-/// image's blur (session 67) seed 112's parts were read a little differently and its run did
-/// not come to that pass (it does again with the thresholds of 896044b); the test runs tuning
-/// seed 120, whose last two parts, the U-channel and the wedge, block each other.
+/// image's blur (session 67) seed 112's parts are read a little differently and its run does
+/// not come to that pass; the test runs tuning seed 120, whose last two parts, the U-channel
+/// and the wedge, block each other.
 #[test]
 fn parts_that_block_each_other_are_picked_pushing_the_neighbours_aside() {
     let doc =
