@@ -356,6 +356,36 @@ const FIT_REACH: isize = 5;
 /// Rounds of placing each step in turn ([`place_steps`]).
 const PLACE_ROUNDS: usize = 3;
 
+/// The pixel line across an edgel: the edge's unit normal, the line's spacing along it (pixels
+/// per sample) and its step in row-major pixel indices.
+struct Across {
+    normal: (f32, f32),
+    spacing: f32,
+    step: isize,
+}
+
+impl Across {
+    /// The pixel line `(sx, sy)` across the edgel at pixel `i` of a `w` x `h` image, whose
+    /// gradient is `(gx, gy)`, if `reach` samples either side stay off the image's border.
+    fn of(
+        i: usize,
+        (w, h): (usize, usize),
+        (gx, gy): (f32, f32),
+        (sx, sy): (isize, isize),
+        reach: isize,
+    ) -> Option<Across> {
+        let (x, y) = ((i % w) as isize, (i / w) as isize);
+        let inside =
+            |v: isize, s: isize, size: usize| v - reach * s.abs() >= 1 && v + reach * s.abs() <= size as isize - 2;
+        let norm = (gx * gx + gy * gy).sqrt();
+        if !inside(x, sx, w) || !inside(y, sy, h) || norm <= 0.0 {
+            return None;
+        }
+        let (c, s) = (gx / norm, gy / norm);
+        Some(Across { normal: (c, s), spacing: sx as f32 * c + sy as f32 * s, step: sy * w as isize + sx })
+    }
+}
+
 /// Edgels at least this many times the low threshold measure the image's blur
 /// ([`CannyWorkspace::extra_blur_variance`]): their profiles stand well clear of the noise.
 const MEASURES_BLUR: f32 = 4.0;
@@ -368,17 +398,9 @@ impl CannyWorkspace {
         let (w, h) = (out.width, out.height);
         let profile = |i: usize| {
             let (gx, gy) = self.gradient_at(i, w);
-            let (sx, sy) = nearest_pixel_line(gx, gy);
-            let (x, y) = ((i % w) as isize, (i / w) as isize);
-            let inside = |v: isize, s: isize, size: usize| v - 3 * s.abs() >= 1 && v + 3 * s.abs() <= size as isize - 2;
-            let norm = (gx * gx + gy * gy).sqrt();
-            if !inside(x, sx, w) || !inside(y, sy, h) || norm <= 0.0 {
-                return None;
-            }
-            let step = sy * w as isize + sx;
-            let samples = std::array::from_fn(|k| self.mag[(i as isize + (k as isize - 3) * step) as usize]);
-            let (c, s) = (gx / norm, gy / norm);
-            Some((samples, sx as f32 * c + sy as f32 * s, (c, s)))
+            let across = Across::of(i, (w, h), (gx, gy), nearest_pixel_line(gx, gy), 3)?;
+            let samples = std::array::from_fn(|k| self.mag[(i as isize + (k as isize - 3) * across.step) as usize]);
+            Some((samples, across.spacing, across.normal))
         };
         let strong = out.edgels.iter().zip(&out.pixel).filter(|(e, _)| e.contrast >= MEASURES_BLUR * low);
         super::blur::measured_extra_variance(strong.filter_map(|(_, &i)| profile(i as usize)))
@@ -436,16 +458,9 @@ impl CannyWorkspace {
     ) -> f32 {
         const N: usize = (2 * FIT_REACH + 1) as usize;
         let reach = FIT_REACH;
-        let (x, y) = ((i % w) as isize, (i / w) as isize);
-        let inside =
-            |v: isize, s: isize, size: usize| v - reach * s.abs() >= 1 && v + reach * s.abs() <= size as isize - 2;
-        let norm = (gx * gx + gy * gy).sqrt();
-        if !inside(x, sx, w) || !inside(y, sy, h) || norm <= 0.0 {
+        let Some(Across { normal: (c, s), spacing, step }) = Across::of(i, (w, h), (gx, gy), (sx, sy), reach) else {
             return offset;
-        }
-        let (c, s) = (gx / norm, gy / norm);
-        let spacing = sx as f32 * c + sy as f32 * s;
-        let step = sy * w as isize + sx;
+        };
         if !self.something_beside(i, step, spacing, (low, blur)) {
             return offset;
         }
