@@ -37,6 +37,10 @@ pub struct RunScene {
     pub wrong_picks: Vec<Value>,
     pub cycles: usize,
     pub failures: BTreeMap<String, usize>,
+    /// Each pick that failed: seed, cycle, model chosen, outcome and the server's detail (where
+    /// the part came to rest and why that is not in the bin), so a drop can be found again.
+    #[serde(default)]
+    pub failed_picks: Vec<Value>,
     pub stopped_by: String,
     /// Picks planned with the neighbours left out (every part blocked by another), and of
     /// those placed.
@@ -148,6 +152,7 @@ fn run_scene(
         wrong_picks,
         cycles: r.cycles.len(),
         failures: failures(&r.cycles),
+        failed_picks: failed_picks(s, &r.cycles),
         stopped_by: stopped_by.into(),
         pushing_picks: r.cycles.iter().filter(|c| c.pushing_neighbours).count(),
         pushing_placed: r
@@ -161,6 +166,24 @@ fn run_scene(
         cycle_s: r.cycles.iter().map(|c| c.cycle_s).collect(),
         vision_ms: r.cycles.iter().map(Cycle::vision_ms).collect(),
     })
+}
+
+/// Every pick of `cycles` that was tried and not placed, named for finding it again (`marvin
+/// run --seed`).
+fn failed_picks(seed: u64, cycles: &[Cycle]) -> Vec<Value> {
+    let detail = |c: &Cycle| match &c.outcome {
+        Some(Ok(reply)) => reply.detail.clone(),
+        _ => None,
+    };
+    cycles
+        .iter()
+        .enumerate()
+        .filter_map(|(k, c)| Some((k, c, &c.located.get(c.chosen?)?.model)))
+        .filter(|(_, c, _)| outcome_name(c) != "placed")
+        .map(|(k, c, model)| {
+            json!({ "seed": seed, "cycle": k + 1, "model": model, "outcome": outcome_name(c), "detail": detail(c) })
+        })
+        .collect()
 }
 
 /// The summary of `eval run` records (sorted by seed), as one process over them prints it.
@@ -187,6 +210,7 @@ pub fn summarise(records: &[Record]) -> anyhow::Result<Value> {
         *stops.entry(s.stopped_by.clone()).or_insert(0) += 1;
     }
     let wrong: Vec<Value> = scenes.iter().flat_map(|s| s.wrong_picks.clone()).collect();
+    let failed: Vec<Value> = scenes.iter().flat_map(|s| s.failed_picks.clone()).collect();
     let cycle_s: Vec<f64> = scenes.iter().flat_map(|s| s.cycle_s.clone()).collect();
     let vision_ms: Vec<f64> = scenes.iter().flat_map(|s| s.vision_ms.clone()).collect();
     let n = scenes.len();
@@ -206,6 +230,7 @@ pub fn summarise(records: &[Record]) -> anyhow::Result<Value> {
         "cycle_s_mean": cycle_s.iter().sum::<f64>() / cycle_s.len().max(1) as f64,
         "vision_cycle_ms_median": marvin::eval::quantile(&vision_ms, 0.5),
         "failures": all_failures,
+        "failed_picks": failed,
         "stopped_by": stops,
         "pushing_picks": sum(|s| s.pushing_picks),
         "pushing_placed": sum(|s| s.pushing_placed),
@@ -221,4 +246,51 @@ pub fn summarise(records: &[Record]) -> anyhow::Result<Value> {
         ],
     );
     Ok(report)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::failed_picks;
+    use marvin::engine::run::Cycle;
+    use marvin::protocol::{PickOutcomeKind, PickReply};
+    use nalgebra::Isometry3;
+    use vision::matcher::model::Located;
+
+    fn cycle(model: &str, outcome: Option<PickOutcomeKind>, detail: Option<&str>) -> Cycle {
+        let located = Located {
+            model: model.into(),
+            cam_from_model: Isometry3::identity(),
+            support: 0.1,
+            support_fraction: 0.5,
+            scene_lines: Vec::new(),
+            image_support: 0.9,
+            grasps: Vec::new(),
+        };
+        let reply = PickReply {
+            outcome,
+            detail: detail.map(str::to_string),
+            plan_ms: 1.0,
+            motion_s: 1.0,
+            grasp_index: 0,
+            closed_opening_mm: None,
+            tcp_path_base_m: Vec::new(),
+        };
+        Cycle { located: vec![located], chosen: Some(0), outcome: Some(Ok(reply)), ..Cycle::timed(Vec::new()) }
+    }
+
+    #[test]
+    fn each_failed_pick_is_named_with_where_the_part_came_to_rest() {
+        let cycles = [
+            cycle("block", Some(PickOutcomeKind::Placed), None),
+            cycle("wedge", Some(PickOutcomeKind::Drop), Some("it came to rest at (0.4, 0.3, 0.0)")),
+            Cycle::timed(Vec::new()),
+        ];
+        let failed = failed_picks(165, &cycles);
+        assert_eq!(failed.len(), 1, "{failed:?}");
+        assert_eq!(failed[0]["seed"], 165);
+        assert_eq!(failed[0]["cycle"], 2);
+        assert_eq!(failed[0]["model"], "wedge");
+        assert_eq!(failed[0]["outcome"], "drop");
+        assert_eq!(failed[0]["detail"], "it came to rest at (0.4, 0.3, 0.0)");
+    }
 }
