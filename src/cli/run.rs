@@ -29,11 +29,16 @@ pub struct RunArgs {
 }
 
 fn cycle_json(c: &Cycle) -> Value {
+    let reply = c.outcome.as_ref().and_then(|o| o.as_ref().ok());
     json!({
         "located": c.located.iter().map(|l| json!({ "model": l.model, "support": l.support_fraction, "image_support": l.image_support })).collect::<Vec<_>>(),
         "chosen": c.chosen.map(|i| c.located[i].model.clone()),
         "outcome": outcome_name(c),
-        "detail": c.outcome.as_ref().and_then(|o| o.as_ref().ok()).and_then(|r| r.detail.clone()),
+        "detail": reply.and_then(|r| r.detail.clone()),
+        // Which grasp the plan used and how far the jaws closed on the part: what to look at
+        // first when a part slips or drops.
+        "grasp_index": reply.map(|r| r.grasp_index),
+        "closed_opening_mm": reply.and_then(|r| r.closed_opening_mm),
         "unplannable": c.unplannable,
         "pushing_neighbours": c.pushing_neighbours,
         "vision_ms": c.vision_ms(),
