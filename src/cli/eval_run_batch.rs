@@ -61,10 +61,18 @@ pub fn eval(b: &Batch, given: &Shared) -> anyhow::Result<()> {
     let (cameras, cam_from_base, shared) = shared_calibration(b, given, &scn)?;
     let scene = |s: u64| {
         let scene = run_scene(&b.world, &scn, s, &cameras, &cam_from_base)?;
-        let line = format!(
+        let mut line = format!(
             "{} of {} cleared, {} of {} picks placed, stopped by {}",
             scene.cleared, scene.on_table, scene.placed, scene.picks, scene.stopped_by
         );
+        for f in &scene.failed_picks {
+            line += &format!(
+                "; cycle {} {}: {}",
+                f["cycle"],
+                f["model"].as_str().unwrap_or("?"),
+                f["outcome"].as_str().unwrap_or("?")
+            );
+        }
         Ok((serde_json::to_value(&scene)?, line))
     };
     let records = runner.run(&shared, &scene)?;
