@@ -179,17 +179,14 @@ fn run_scene(
 /// Every pick of `cycles` that was tried and not placed, named for finding it again (`marvin
 /// run --seed`).
 fn failed_picks(seed: u64, cycles: &[Cycle]) -> Vec<Value> {
-    let detail = |c: &Cycle| match &c.outcome {
-        Some(Ok(reply)) => reply.detail.clone(),
-        _ => None,
-    };
     cycles
         .iter()
         .enumerate()
-        .filter_map(|(k, c)| Some((k, c, &c.located.get(c.chosen?)?.model)))
+        .filter_map(|(k, c)| Some((k, c, c.chosen_model()?)))
         .filter(|(_, c, _)| outcome_name(c) != "placed")
         .map(|(k, c, model)| {
-            json!({ "seed": seed, "cycle": k + 1, "model": model, "outcome": outcome_name(c), "detail": detail(c) })
+            let detail = c.reply().and_then(|r| r.detail.clone());
+            json!({ "seed": seed, "cycle": k + 1, "model": model, "outcome": outcome_name(c), "detail": detail })
         })
         .collect()
 }

@@ -29,10 +29,10 @@ pub struct RunArgs {
 }
 
 fn cycle_json(c: &Cycle) -> Value {
-    let reply = c.outcome.as_ref().and_then(|o| o.as_ref().ok());
+    let reply = c.reply();
     json!({
         "located": c.located.iter().map(|l| json!({ "model": l.model, "support": l.support_fraction, "image_support": l.image_support })).collect::<Vec<_>>(),
-        "chosen": c.chosen.map(|i| c.located[i].model.clone()),
+        "chosen": c.chosen_model(),
         "outcome": outcome_name(c),
         "detail": reply.and_then(|r| r.detail.clone()),
         // Which grasp the plan used and how far the jaws closed on the part: what to look at
@@ -77,7 +77,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
     let mut k = 0;
     let mut line = |c: &Cycle| {
         k += 1;
-        let chosen = c.chosen.map_or("-".to_string(), |i| c.located[i].model.clone());
+        let chosen = c.chosen_model().unwrap_or("-");
         let line = format!(
             "cycle {k}: {} located, {chosen} chosen: {} ({:.0} ms vision, {:.1} s)",
             c.located.len(),

@@ -76,6 +76,16 @@ impl Cycle {
         }
     }
 
+    /// The server's reply to the pick, when one was tried and not refused.
+    pub fn reply(&self) -> Option<&PickReply> {
+        self.outcome.as_ref().and_then(|o| o.as_ref().ok())
+    }
+
+    /// The model of the part chosen, when one was.
+    pub fn chosen_model(&self) -> Option<&str> {
+        Some(self.located.get(self.chosen?)?.model.as_str())
+    }
+
     pub fn vision_ms(&self) -> f64 {
         self.timings_ms.iter().filter(|(n, _)| matches!(*n, "slices" | "join" | "match")).map(|(_, ms)| ms).sum()
     }
