@@ -488,6 +488,10 @@ pub struct PickReply {
     pub grasp_index: usize,
     /// The jaws' opening once closed, mm.
     pub closed_opening_mm: Option<f64>,
+    /// How far the fingertips reach past the object's centre of mass along the approach, mm
+    /// (negative: they stop short of it, holding the part nearer its top than its weight).
+    #[serde(default)]
+    pub grip_past_com_mm: Option<f64>,
     /// The path planned for the tool centre point, in `base` (metres): each move's waypoints in
     /// order, from the approach to the retreat.
     #[serde(default)]

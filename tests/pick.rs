@@ -6,10 +6,10 @@
 //! cell and vision has not yet earned them in the realistic one (README, "The realistic cell").
 
 use marvin::server::pick::{Aim, PickCell, clear_scene, load, pickable_models, single_object_scenario};
-use nalgebra::Isometry3;
+use nalgebra::{Isometry3, Translation3, Vector3};
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
-use robot::pick::{Action, plan_pick};
+use robot::pick::{Action, GraspCandidate, plan_pick};
 use sim::Scene;
 use std::path::Path;
 
@@ -154,6 +154,34 @@ fn a_pick_that_lifts_another_part_than_the_one_aimed_at_is_a_wrong_part() {
     assert_eq!((out.object, out.lifted_instead), (aimed, Some(lifted)), "{out:?}");
     assert!(cell.in_bin(lifted), "the part lifted was carried to the bin all the same: {out:?}");
     assert!(!cell.in_bin(aimed));
+}
+
+/// The plan says how deep its fingertips reach past the part's centre of mass: for a block
+/// lying flat, taken from straight above as written and 14 mm shallower, the depth below its
+/// centre of mass of a point 5 mm below the tool centre point (the URDF's fingertips).
+#[test]
+fn a_plan_says_how_far_its_fingertips_reach_past_the_centre_of_mass() {
+    let (scn, work) = load(world()).unwrap();
+    let one = single_object_scenario(&scn, "block");
+    let cell = PickCell::new(&one, &work, &Scene::settle(&one, 2)).unwrap();
+    let mut request = cell.request(1, 2).unwrap();
+    let written = request.grasps[0];
+    let approach = written.base_from_gripper.rotation * Vector3::z();
+    assert!(approach.z < -0.999, "taken from straight above: {approach}");
+    let shallow = GraspCandidate {
+        base_from_gripper: Translation3::from(-0.014 * approach) * written.base_from_gripper,
+        ..written
+    };
+    let below_com =
+        |plan: &robot::pick::PickPlan| request.target_com.z - (plan.grasp.base_from_gripper.translation.z - 0.005);
+    let plan = plan_pick(&work.arm, &work.ik, &request).unwrap();
+    assert!((plan.grip_past_com_m - below_com(&plan)).abs() < 1e-9, "{} {}", plan.grip_past_com_m, below_com(&plan));
+    // The block's grasp holds it at its middle: the fingertips 5 mm below it.
+    assert!((plan.grip_past_com_m - 0.005).abs() < 1e-6, "{}", plan.grip_past_com_m);
+    request.grasps = vec![shallow];
+    let plan = plan_pick(&work.arm, &work.ik, &request).unwrap();
+    assert!((plan.grip_past_com_m - below_com(&plan)).abs() < 1e-9, "{} {}", plan.grip_past_com_m, below_com(&plan));
+    assert!(plan.grip_past_com_m <= 0.005 - 0.014 + 1e-6, "{}", plan.grip_past_com_m);
 }
 
 #[test]

@@ -5,7 +5,7 @@
 //! that order (zed in metres, the rest in radians). The two fingers always move together: the
 //! gripper's `opening` (metres between the pads) puts each finger at half of it.
 
-use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Point3, Translation3, Unit, UnitQuaternion, Vector3};
 use std::collections::HashMap;
 use std::path::Path;
 
@@ -181,10 +181,42 @@ impl Arm {
         poses
     }
 
+    /// How far the fingertips reach beyond the tool centre point along its z (the approach),
+    /// metres: the furthest corner of the finger links' collision shapes, from the URDF.
+    pub fn fingertip_reach(&self) -> f64 {
+        let poses = self.link_poses(&[0.0; 6], 0.0);
+        let tcp_from_base = poses[self.tcp_link].inverse();
+        let fingers = self.finger_joints.iter().map(|&j| self.joints[j].child);
+        fingers
+            .flat_map(|link| self.links[link].shapes.iter().map(move |s| (link, s)))
+            .flat_map(|(link, s)| {
+                let tcp_from_shape = tcp_from_base * poses[link] * s.link_from_shape;
+                shape_corners(&s.primitive).into_iter().map(move |c| (tcp_from_shape * c).z)
+            })
+            .fold(f64::NEG_INFINITY, f64::max)
+    }
+
     /// Forward kinematics: the gripper (tool centre point) frame in the base frame.
     pub fn base_from_gripper(&self, q: &Joints) -> Isometry3<f64> {
         self.link_poses(q, 0.0)[self.tcp_link]
     }
+}
+
+/// The corners of a primitive's bounding box in its own frame (exact for boxes, which the
+/// fingers are; a bound for the rest).
+fn shape_corners(p: &Primitive) -> Vec<Point3<f64>> {
+    let half = match *p {
+        Primitive::Box { half_extents } => half_extents,
+        Primitive::Cylinder { radius, half_length } => Vector3::new(radius, radius, half_length),
+        Primitive::Sphere { radius } => Vector3::repeat(radius),
+        Primitive::Capsule { radius, half_length } => Vector3::new(radius, radius, half_length + radius),
+    };
+    (0..8)
+        .map(|k| {
+            let sign = |bit: usize| if k & bit == 0 { -1.0 } else { 1.0 };
+            Point3::new(sign(1) * half.x, sign(2) * half.y, sign(4) * half.z)
+        })
+        .collect()
 }
 
 fn joint_motion(joint: &JointSpec, value: f64) -> Isometry3<f64> {
@@ -320,6 +352,13 @@ pub(crate) mod tests {
         assert!((g.translation.vector - expect).norm() < 1e-12, "{}", g.translation.vector);
         let approach = g.rotation * Vector3::z();
         assert!((approach - Vector3::new(0.0, 0.0, -1.0)).norm() < 1e-12);
+    }
+
+    #[test]
+    fn the_fingertips_reach_5_mm_past_the_tool_centre_point() {
+        // The URDF puts the tcp 5 mm above the fingertips: finger boxes 60 mm long from 0.03 m
+        // below the gripper link, the tcp 0.085 m below it.
+        assert!((umi().fingertip_reach() - 0.005).abs() < 1e-12, "{}", umi().fingertip_reach());
     }
 
     #[test]

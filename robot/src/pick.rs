@@ -9,7 +9,7 @@ use crate::arm::{Arm, Joints};
 use crate::ik::{Ik, IkError};
 use crate::planner::{Attached, CollisionWorld, Obstacle, PlannerParams, Problem};
 use crate::trajectory::{Limits, Trajectory};
-use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use std::f64::consts::PI;
 
 /// How far the gripper backs off along the approach axis before descending, metres.
@@ -55,6 +55,8 @@ pub struct PickRequest {
     pub grasps: Vec<GraspCandidate>,
     /// The object to pick, as the planner sees it.
     pub target: Obstacle,
+    /// Its centre of mass, in the base frame.
+    pub target_com: Point3<f64>,
     /// Everything else: table, bins, other objects.
     pub obstacles: Vec<Obstacle>,
     pub place: PlaceTarget,
@@ -82,6 +84,9 @@ pub struct PickPlan {
     /// Index into the request's grasps.
     pub grasp_index: usize,
     pub grasp: GraspCandidate,
+    /// How far the fingertips reach past the object's centre of mass along the approach,
+    /// metres ([`grip_past_com`]).
+    pub grip_past_com_m: f64,
     /// The gripper pose at release.
     pub base_from_release: Isometry3<f64>,
     pub steps: Vec<Step>,
@@ -137,6 +142,12 @@ pub fn plan_pick(arm: &Arm, ik: &Ik, req: &PickRequest) -> Result<PickPlan, Pick
     Err(PickError::NoGrasp { reasons })
 }
 
+/// How far the fingertips reach past the object's centre of mass along the approach, metres
+/// (negative: they stop short of it, and hold the part nearer its top than its weight).
+pub fn grip_past_com(arm: &Arm, grasp: &GraspCandidate, base_com: &Point3<f64>) -> f64 {
+    arm.fingertip_reach() - (grasp.base_from_gripper.inverse() * base_com).z
+}
+
 fn plan_pick_with_margin(arm: &Arm, ik: &Ik, req: &PickRequest, margin: f64) -> Result<PickPlan, Vec<String>> {
     let mut reasons = Vec::new();
     for tilt in TILTS_DEG {
@@ -150,7 +161,8 @@ fn plan_pick_with_margin(arm: &Arm, ik: &Ik, req: &PickRequest, margin: f64) -> 
                     GraspCandidate { base_from_gripper: shifted(&tilted, -shallower * approach), width: written.width };
                 match plan_with_grasp(arm, ik, req, &grasp, margin) {
                     Ok((steps, base_from_release)) => {
-                        return Ok(PickPlan { grasp_index: i, grasp, base_from_release, steps });
+                        let grip_past_com_m = grip_past_com(arm, &grasp, &req.target_com);
+                        return Ok(PickPlan { grasp_index: i, grasp, grip_past_com_m, base_from_release, steps });
                     }
                     // The reason at the written depth is the telling one.
                     Err(e) if why.is_empty() => why = e,

@@ -73,7 +73,8 @@ pub enum EvalTarget {
     /// 20 mm) and `wrong_picks` (each: seed, cycle, model, support, image support, outcome,
     /// the nearest object of its model and of any model), `cycles_mean`, `cycle_s_mean` (wall), `vision_cycle_ms_median` (front end and
     /// matcher), `failures` (by kind, every attempt, those later retried included),
-    /// `failed_picks` (each: seed, cycle, model, outcome, and where the part came to rest),
+    /// `failed_picks` (each: seed, cycle, model, outcome, where the part came to rest, and
+    /// `grip_past_com_mm`, how far the fingertips reached past its centre of mass),
     /// `stopped_by`, `pushing_picks` and `pushing_placed` (picks planned with the neighbours left
     /// out, where every part was blocked by another, and of those placed), `calibration_error`,
     /// `unsettled_scenes`.

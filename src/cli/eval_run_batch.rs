@@ -185,8 +185,8 @@ fn failed_picks(seed: u64, cycles: &[Cycle]) -> Vec<Value> {
         .filter_map(|(k, c)| Some((k, c, c.chosen_model()?)))
         .filter(|(_, c, _)| outcome_name(c) != "placed")
         .map(|(k, c, model)| {
-            let detail = c.reply().and_then(|r| r.detail.clone());
-            json!({ "seed": seed, "cycle": k + 1, "model": model, "outcome": outcome_name(c), "detail": detail })
+            let (detail, grip) = (c.reply().and_then(|r| r.detail.clone()), c.reply().and_then(|r| r.grip_past_com_mm));
+            json!({ "seed": seed, "cycle": k + 1, "model": model, "outcome": outcome_name(c), "detail": detail, "grip_past_com_mm": grip })
         })
         .collect()
 }
@@ -278,6 +278,7 @@ mod tests {
             motion_s: 1.0,
             grasp_index: 0,
             closed_opening_mm: None,
+            grip_past_com_mm: None,
             tcp_path_base_m: Vec::new(),
         };
         Cycle { located: vec![located], chosen: Some(0), outcome: Some(Ok(reply)), ..Cycle::timed(Vec::new()) }

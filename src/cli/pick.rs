@@ -69,7 +69,11 @@ fn report(out: &PickOutcome) -> anyhow::Result<()> {
         emit(&format!("  {d}"))?;
     }
     if let Some(g) = out.grasp {
-        emit(&format!("  grasp {g}, fingers closed to {:.1} mm", out.closed_opening_mm.unwrap_or(0.0)))?;
+        emit(&format!(
+            "  grasp {g}, fingers closed to {:.1} mm, fingertips {:.1} mm past its centre of mass",
+            out.closed_opening_mm.unwrap_or(0.0),
+            out.grip_past_com_mm.unwrap_or(f64::NAN)
+        ))?;
     }
     emit(&format!(
         "  {:.2} s simulated, worst joint tracking error {:.2e} ({})",

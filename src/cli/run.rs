@@ -35,10 +35,12 @@ fn cycle_json(c: &Cycle) -> Value {
         "chosen": c.chosen_model(),
         "outcome": outcome_name(c),
         "detail": reply.and_then(|r| r.detail.clone()),
-        // Which grasp the plan used and how far the jaws closed on the part: what to look at
-        // first when a part slips or drops.
+        // Which grasp the plan used, how far the jaws closed on the part and how deep the
+        // fingertips reached past its centre of mass: what to look at first when a part slips
+        // or drops.
         "grasp_index": reply.map(|r| r.grasp_index),
         "closed_opening_mm": reply.and_then(|r| r.closed_opening_mm),
+        "grip_past_com_mm": reply.and_then(|r| r.grip_past_com_mm),
         "unplannable": c.unplannable,
         "pushing_neighbours": c.pushing_neighbours,
         "vision_ms": c.vision_ms(),

@@ -421,6 +421,7 @@ impl<'a> SimCell<'a> {
         let plan = plan_pick(&self.work.arm, &self.work.ik, &request).map_err(|e| self.why_unplanned(&request, e))?;
         let plan_ms = t0.elapsed().as_secs_f64() * 1e3;
         let tcp_path_base_m = self.tcp_path(&plan);
+        let grip_past_com_mm = Some(plan.grip_past_com_m * 1e3);
         if spec.plan_only {
             let grasp_index = plan.grasp_index;
             return Ok(PickReply {
@@ -430,6 +431,7 @@ impl<'a> SimCell<'a> {
                 motion_s: 0.0,
                 grasp_index,
                 closed_opening_mm: None,
+                grip_past_com_mm,
                 tcp_path_base_m,
             });
         }
@@ -451,6 +453,7 @@ impl<'a> SimCell<'a> {
             motion_s: out.simulated_s,
             grasp_index: out.grasp.unwrap_or(0),
             closed_opening_mm: out.closed_opening_mm,
+            grip_past_com_mm,
             tcp_path_base_m,
         })
     }
@@ -560,6 +563,7 @@ impl<'a> SimCell<'a> {
                 shape: collision_shape(model),
                 base_from_shape: base_from_model,
             },
+            target_com: base_from_model * model.mass.centre_of_mass,
             obstacles,
             place: place_target(self.work, bin, self.pick.released),
             start: self.joints(),

@@ -71,6 +71,10 @@ pub struct PickOutcome {
     pub closed_opening_mm: Option<f64>,
     /// The width across the jaws of the grasp planned, mm: what `closed_opening_mm` should be.
     pub grasp_width_mm: Option<f64>,
+    /// How far the planned fingertips reach past the object's centre of mass along the
+    /// approach, mm (negative: short of it).
+    #[serde(default)]
+    pub grip_past_com_mm: Option<f64>,
     /// The object lifted, when it was not the one aimed at (a `wrong part`).
     pub lifted_instead: Option<u32>,
 }
@@ -161,12 +165,15 @@ impl<'a> PickCell<'a> {
         }
         let target = target.ok_or_else(|| anyhow!("no object {id}"))?;
         let (model_name, _) = self.body(id)?;
-        let grasps = grasp_candidates(&self.scn.library.models[&model_name], &target.base_from_shape);
+        let model = &self.scn.library.models[&model_name];
+        let grasps = grasp_candidates(model, &target.base_from_shape);
+        let target_com = target.base_from_shape * model.mass.centre_of_mass;
         let bin =
             self.scn.world.bins.first().ok_or_else(|| anyhow!("{}: no bin to place into", self.scn.path.display()))?;
         Ok(PickRequest {
             grasps,
             target,
+            target_com,
             obstacles,
             place: place_target(self.work, bin, self.released),
             start: self.arm.joints(&self.cell),
@@ -205,6 +212,7 @@ impl<'a> PickCell<'a> {
             worst_tracking_step: None,
             closed_opening_mm: None,
             grasp_width_mm: None,
+            grip_past_com_mm: None,
             lifted_instead: None,
         };
         if let Aim::Body(body) = aim {
@@ -219,6 +227,7 @@ impl<'a> PickCell<'a> {
         };
         out.grasp = Some(plan.grasp_index);
         out.grasp_width_mm = Some(plan.grasp.width * 1e3);
+        out.grip_past_com_mm = Some(plan.grip_past_com_m * 1e3);
         self.execute(&plan, aim, &mut out);
         self.judge_wrong_part(&mut out);
         if !out.placed {
