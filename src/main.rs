@@ -54,6 +54,11 @@ enum Command {
         /// rerun+http://127.0.0.1:9876/proxy).
         #[arg(long, num_args = 0..=1, default_missing_value = "")]
         rerun_connect: Option<String>,
+        /// Write each cycle's pair of images to this folder as the cameras sent them
+        /// (cycle_NN_left.png, cycle_NN_right.png), to look at any cycle again with `marvin
+        /// locate --left --right --cameras`.
+        #[arg(long)]
+        save_captures: Option<PathBuf>,
     },
     /// Settle a world's objects and render what both cameras see.
     ///
@@ -335,7 +340,18 @@ fn main() -> std::process::ExitCode {
         let _ = tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).try_init();
     }
     let result = match Cli::parse().command {
-        Command::Run { world, seed, connect, hand_eye, cameras, max_cycles, json, rerun, rerun_connect } => {
+        Command::Run {
+            world,
+            seed,
+            connect,
+            hand_eye,
+            cameras,
+            max_cycles,
+            json,
+            rerun,
+            rerun_connect,
+            save_captures,
+        } => {
             use marvin::engine::recording::Sink;
             let rerun = match (rerun, rerun_connect) {
                 (Some(file), _) => Some(Sink::File(file)),
@@ -343,7 +359,7 @@ fn main() -> std::process::ExitCode {
                 (None, None) => None,
             };
             let max_cycles = max_cycles as usize;
-            run::run(run::RunArgs { world, seed, connect, hand_eye, cameras, max_cycles, json, rerun })
+            run::run(run::RunArgs { world, seed, connect, hand_eye, cameras, max_cycles, json, rerun, save_captures })
         }
         Command::Render { world, seed, out } => render::run(&world, seed, &out),
         Command::Edges { image, sigma, json, out } => edges::run(&image, sigma, json, out.as_deref()),

@@ -1,4 +1,5 @@
-//! End to end: `marvin edges` and `marvin stereo` on rendered images, and their errors.
+//! End to end: `marvin edges` and `marvin stereo` on rendered images, and their errors; a run's
+//! captures saved and looked at again with `marvin locate --left --right`.
 //!
 //! Run on the ideal copy of the world (`worlds/ideal/`): these figures were measured in the ideal
 //! cell and vision has not yet earned them in the realistic one (README, "The realistic cell").
@@ -241,4 +242,52 @@ fn distance_to_segment(p: &nalgebra::Point3<f64>, a: &nalgebra::Point3<f64>, b: 
     let ab = b - a;
     let t = ((p - a).dot(&ab) / ab.norm_squared().max(1e-18)).clamp(0.0, 1.0);
     (p - (a + ab * t)).norm()
+}
+
+/// `marvin run --save-captures DIR` writes each cycle's pair as the cameras sent it, and `marvin
+/// locate --left --right` on a saved pair finds the parts the run located in that cycle.
+#[test]
+fn a_runs_captures_are_saved_and_located_again() {
+    let fixture = "tests/fixtures/ideal_seed3";
+    let (cameras, hand_eye) = (format!("{fixture}/cameras.json"), format!("{fixture}/hand_eye.json"));
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli_vision_captures");
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = marvin(&[
+        "run",
+        "worlds/ideal/widgets.toml",
+        "--seed",
+        "3",
+        "--cameras",
+        &cameras,
+        "--hand-eye",
+        &hand_eye,
+        "--max-cycles",
+        "2",
+        "--save-captures",
+        path(&dir),
+        "--json",
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let run: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let models = |located: &serde_json::Value| {
+        let mut m: Vec<String> =
+            located.as_array().unwrap().iter().map(|l| l["model"].as_str().unwrap().to_string()).collect();
+        m.sort();
+        m
+    };
+    let cycles = run["cycles"].as_array().unwrap();
+    assert_eq!(cycles.len(), 2);
+    for (k, cycle) in cycles.iter().enumerate() {
+        let (left, right) =
+            (dir.join(format!("cycle_{:02}_left.png", k + 1)), dir.join(format!("cycle_{:02}_right.png", k + 1)));
+        for p in [&left, &right] {
+            let img = image::open(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+            assert_eq!((img.width(), img.height(), img.color()), (512, 512, image::ColorType::L8), "{}", p.display());
+        }
+        let out = marvin(&["locate", "--left", path(&left), "--right", path(&right), "--cameras", &cameras, "--json"]);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let again: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(models(&again["located"]), models(&cycle["located"]), "cycle {}", k + 1);
+    }
+    assert!(!dir.join("cycle_03_left.png").exists(), "a third cycle was never captured");
 }

@@ -123,7 +123,7 @@ fn run_scene(
     let known = HandEye::Known(*cam_from_base);
     let mut judge = Judge::new(cell.local(), &scn.library);
     let config = RunConfig { cameras: Some(cameras.clone()), ..RunConfig::default() };
-    let r = run_once(&cell, scn, s, &known, &config, true, &mut |_| String::new(), None, &mut judge)?;
+    let r = run_once(&cell, scn, s, &known, &config, true, &mut |_| String::new(), None, None, &mut judge)?;
     let truth = judge.verdict().truth.context("a local server gives the truth")?;
     cell.stop()?;
     // A pick succeeds when the server placed the part it aimed at and that part is of the

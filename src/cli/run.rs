@@ -26,6 +26,8 @@ pub struct RunArgs {
     pub json: bool,
     /// Where to record the run for rerun, if anywhere.
     pub rerun: Option<Sink>,
+    /// A folder for each cycle's pair of images, if any.
+    pub save_captures: Option<PathBuf>,
 }
 
 fn cycle_json(c: &Cycle) -> Value {
@@ -97,8 +99,10 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
     let source = args.hand_eye.clone().map_or(HandEye::Calibrate, HandEye::File);
     let mut recording = args.rerun.as_ref().map(Recording::start).transpose()?;
     let mut judge = Judge::new(cell.local(), &scn.library);
-    let report = run_once(&cell, &scn, seed, &source, &config, quiet, &mut line, recording.as_mut(), &mut judge)
-        .map_err(|e| realistic_hint(e, &scn, &args))?;
+    let captures = args.save_captures.as_deref();
+    let report =
+        run_once(&cell, &scn, seed, &source, &config, quiet, &mut line, recording.as_mut(), captures, &mut judge)
+            .map_err(|e| realistic_hint(e, &scn, &args))?;
     let verdict = judge.verdict();
     cell.stop()?;
     if let Some(r) = recording {

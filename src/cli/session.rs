@@ -10,10 +10,10 @@ use marvin::engine::calibrate::{CalibrateConfig, Calibration, calibrate};
 use marvin::engine::client::Client;
 use marvin::engine::recording::Recording;
 use marvin::engine::run::{Cycle, RunConfig, RunEvent, RunReport};
-use marvin::protocol::{PickOutcomeKind, WirePose};
+use marvin::protocol::{CaptureReply, PickOutcomeKind, WirePose};
 use nalgebra::Isometry3;
 use std::collections::BTreeMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use vision::matcher::Located;
 
 /// Where a run's hand-eye transform comes from.
@@ -97,7 +97,8 @@ pub fn hand_eye_summary(s: &hand_eye::Solution) -> Vec<String> {
 }
 
 /// One run on `cell`, with the hand-eye transform from `source`; `cycle_line` hears of each
-/// cycle; `recording`, if any, is given everything to record; `watcher` watches.
+/// cycle; `recording`, if any, is given everything to record; each capture's pair is written to
+/// `captures`, if given ([`save_capture`]); `watcher` watches.
 #[allow(clippy::too_many_arguments)]
 pub fn run_once(
     cell: &Cell,
@@ -108,6 +109,7 @@ pub fn run_once(
     quiet: bool,
     cycle_line: &mut dyn FnMut(&Cycle) -> String,
     mut recording: Option<&mut Recording>,
+    captures: Option<&Path>,
     watcher: &mut dyn Watcher,
 ) -> anyhow::Result<RunReport> {
     let library = &scn.library;
@@ -146,6 +148,9 @@ pub fn run_once(
         match event {
             RunEvent::Captured { cycle, capture, pair, front_end } => {
                 sim_time = capture.sim_time_s;
+                if let Some(dir) = captures {
+                    save_capture(dir, cycle, capture)?;
+                }
                 if let Some(r) = recording.as_deref_mut() {
                     r.at(cycle, sim_time);
                     r.capture(capture, pair, front_end)?;
@@ -177,6 +182,22 @@ pub fn run_once(
     watcher.finished(recording)?;
     client.bye()?;
     Ok(report)
+}
+
+/// Writes cycle `cycle`'s pair as the cameras sent it (`cycle_NN_left.png`, `cycle_NN_right.png`,
+/// NN counted from 1 as the cycle lines count), so that `marvin locate --left --right --cameras`
+/// can look at any cycle again.
+pub fn save_capture(dir: &Path, cycle: usize, capture: &CaptureReply) -> anyhow::Result<()> {
+    use base64::Engine;
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    for (side, b64) in [("left", &capture.left_png_b64), ("right", &capture.right_png_b64)] {
+        let png = base64::engine::general_purpose::STANDARD
+            .decode(b64)
+            .with_context(|| format!("cycle {}: the {side} image is not base64", cycle + 1))?;
+        let path = dir.join(format!("cycle_{:02}_{side}.png", cycle + 1));
+        std::fs::write(&path, png).with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok(())
 }
 
 pub fn outcome_name(c: &Cycle) -> String {
