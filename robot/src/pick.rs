@@ -123,9 +123,10 @@ pub const SHALLOWER_M: [f64; 3] = [0.0, 0.006, 0.012];
 pub const TILTS_DEG: [f64; 5] = [0.0, 20.0, -20.0, 40.0, -40.0];
 
 /// Plans the whole pick: tries the grasps in order, each at the depths of [`SHALLOWER_M`], then
-/// all of them again at each tilt of [`TILTS_DEG`], with the jaws opened by [`OPEN_MARGIN_M`]
-/// beyond the part; if none works, all of that again with [`TIGHT_OPEN_MARGIN_M`]. Returns the
-/// first that works end to end; the reasons given are the wide opening's.
+/// all of them again at each tilt of [`TILTS_DEG`], the deepest shallowing and steepest tilt
+/// last of all ([`last_resort`]), with the jaws opened by [`OPEN_MARGIN_M`] beyond the part; if
+/// none works, all of that again with [`TIGHT_OPEN_MARGIN_M`]. Returns the first that works end
+/// to end; the reasons given are the wide opening's.
 pub fn plan_pick(arm: &Arm, ik: &Ik, req: &PickRequest) -> Result<PickPlan, PickError> {
     let mut first_reasons = None;
     for margin in [OPEN_MARGIN_M, TIGHT_OPEN_MARGIN_M] {
@@ -148,33 +149,41 @@ pub fn grip_past_com(arm: &Arm, grasp: &GraspCandidate, base_com: &Point3<f64>) 
     arm.fingertip_reach() - (grasp.base_from_gripper.inverse() * base_com).z
 }
 
+/// The deepest shallowing and steepest tilt are tried only after every other take: on
+/// truth-planned picks (`eval pick worlds/widgets.toml --trials 200 --seed 141`) 5 of 54 picks
+/// taken 12 mm shallow and 3 of 21 tilted 40 deg failed, against 1 of 1,614 upright at the
+/// written depth: such a grip holds little of the part.
+fn last_resort(tilt_deg: f64, shallower_m: f64) -> bool {
+    tilt_deg.abs() >= 40.0 || shallower_m >= 0.012
+}
+
 fn plan_pick_with_margin(arm: &Arm, ik: &Ik, req: &PickRequest, margin: f64) -> Result<PickPlan, Vec<String>> {
-    let mut reasons = Vec::new();
-    for tilt in TILTS_DEG {
-        let turn = Isometry3::rotation(Vector3::y() * tilt.to_radians());
-        for (i, written) in req.grasps.iter().enumerate() {
-            let tilted = written.base_from_gripper * turn;
-            let mut why = String::new();
-            for shallower in SHALLOWER_M {
+    // Why each grasp failed upright at its written depth: the telling reason.
+    let mut why = vec![String::new(); req.grasps.len()];
+    for last in [false, true] {
+        for tilt in TILTS_DEG {
+            let turn = Isometry3::rotation(Vector3::y() * tilt.to_radians());
+            for (i, written) in req.grasps.iter().enumerate() {
+                let tilted = written.base_from_gripper * turn;
                 let approach = tilted.rotation * Vector3::z();
-                let grasp =
-                    GraspCandidate { base_from_gripper: shifted(&tilted, -shallower * approach), width: written.width };
-                match plan_with_grasp(arm, ik, req, &grasp, margin) {
-                    Ok((steps, base_from_release)) => {
-                        let grip_past_com_m = grip_past_com(arm, &grasp, &req.target_com);
-                        return Ok(PickPlan { grasp_index: i, grasp, grip_past_com_m, base_from_release, steps });
+                for shallower in SHALLOWER_M.into_iter().filter(|&s| last_resort(tilt, s) == last) {
+                    let grasp = GraspCandidate {
+                        base_from_gripper: shifted(&tilted, -shallower * approach),
+                        width: written.width,
+                    };
+                    match plan_with_grasp(arm, ik, req, &grasp, margin) {
+                        Ok((steps, base_from_release)) => {
+                            let grip_past_com_m = grip_past_com(arm, &grasp, &req.target_com);
+                            return Ok(PickPlan { grasp_index: i, grasp, grip_past_com_m, base_from_release, steps });
+                        }
+                        Err(e) if tilt == 0.0 && shallower == 0.0 => why[i] = e,
+                        Err(_) => {}
                     }
-                    // The reason at the written depth is the telling one.
-                    Err(e) if why.is_empty() => why = e,
-                    Err(_) => {}
                 }
-            }
-            if tilt == 0.0 {
-                reasons.push(format!("grasp {i}: {why}"));
             }
         }
     }
-    Err(reasons)
+    Err(why.into_iter().enumerate().map(|(i, why)| format!("grasp {i}: {why}")).collect())
 }
 
 fn limits(arm: &Arm) -> Limits {
