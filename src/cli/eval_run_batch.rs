@@ -185,7 +185,8 @@ fn failed_picks(seed: u64, cycles: &[Cycle]) -> Vec<Value> {
         .filter_map(|(k, c)| Some((k, c, c.chosen_model()?)))
         .filter(|(_, c, _)| outcome_name(c) != "placed")
         .map(|(k, c, model)| {
-            let (detail, grip) = (c.reply().and_then(|r| r.detail.clone()), c.reply().and_then(|r| r.grip_past_com_mm));
+            let reply = c.reply();
+            let (detail, grip) = (reply.and_then(|r| r.detail.clone()), reply.and_then(|r| r.grip_past_com_mm));
             json!({ "seed": seed, "cycle": k + 1, "model": model, "outcome": outcome_name(c), "detail": detail, "grip_past_com_mm": grip })
         })
         .collect()
