@@ -168,7 +168,10 @@ pub enum EvalTarget {
     /// JSON keys (each fraction also as `<key>_ci95`, its 95% Wilson interval): `located_fraction` (of objects with >= 30% of their feature-edge length
     /// visible), `pos_err_mm_median`, `pos_err_mm_p90`, `rot_err_deg_median` (of correct reports,
     /// over each model's symmetries; correct = within 10 mm and 5 deg), `false_positive_fraction`
-    /// (of all reports), `match_ms_median`, `located_by_model`, `unsettled_scenes`.
+    /// (of all reports), `match_ms_median`, `located_by_model`, `unsettled_scenes`, `missed`
+    /// (each eligible object not located: seed, model, visible share, and `at_truth`, the
+    /// matcher's own measures at its true pose, judged afterwards: share of the wireframe along
+    /// 3D lines, model lines seen, share along each image's edgels).
     Locate {
         world: PathBuf,
         #[arg(long, default_value_t = 50, value_parser = clap::value_parser!(u64).range(1..=super::args::MAX_COUNT))]

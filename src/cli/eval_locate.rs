@@ -80,7 +80,8 @@ pub fn eval(b: &Batch, sources: &Sources) -> anyhow::Result<()> {
             (vision::matcher::locate_all(&models, &lines, &params, Some(&evidence)), None)
         };
         let match_ms = clock.elapsed().as_secs_f64() * 1e3;
-        let stats = locate_stats(&located, &p.scene, &scn.library, &p.cams, &p.left.depth, &symmetry);
+        let mut stats = locate_stats(&located, &p.scene, &scn.library, &p.cams, &p.left.depth, &symmetry);
+        measure_at_truth(&mut stats.missed, &p.scene, &calib, (&models, &lines, &params), &evidence);
         let line = format!(
             "located {}/{} visible objects, {} false of {} reports",
             stats.located, stats.eligible, stats.false_positives, stats.reports
@@ -89,6 +90,28 @@ pub fn eval(b: &Batch, sources: &Sources) -> anyhow::Result<()> {
     };
     let records = runner.run(&shared, &scene)?;
     print_report(summarise(&records)?, b.shard, b.json)
+}
+
+/// Each missed object's true pose (in the frame of the camera vision was given) measured as
+/// the matcher measures its readings: whether the evidence was there, judged afterwards.
+fn measure_at_truth(
+    missed: &mut [marvin::eval::Missed],
+    scene: &sim::Scene,
+    calib: &mesh::StereoCalibration,
+    (models, lines, params): (&[vision::matcher::MatcherModel], &[vision::matcher::Seg], &vision::matcher::MatchParams),
+    evidence: &vision::matcher::verify::ImageEvidence,
+) {
+    for m in missed {
+        let Some(model) = models.iter().find(|x| x.name == m.model) else { continue };
+        let pose = calib.left.cam_from_world() * scene.objects[m.id].world_from_model;
+        let (support_fraction, seen) = vision::matcher::support_at(model, &pose, lines, params);
+        let image_support = vision::matcher::verify::image_support(model, &pose, evidence);
+        let image_support_right = evidence
+            .right
+            .as_ref()
+            .map(|r| vision::matcher::verify::image_support(model, &(r.right_from_cam * pose), &r.ev));
+        m.at_truth = Some(marvin::eval::AtTruth { support_fraction, lines: seen, image_support, image_support_right });
+    }
 }
 
 /// The summary of `eval locate` records (sorted by seed), as one process over them prints it.

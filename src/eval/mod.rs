@@ -463,6 +463,21 @@ pub struct Missed {
     pub id: usize,
     pub model: String,
     pub visible_fraction: f64,
+    /// The matcher's own measures at the object's true pose (through the calibration vision
+    /// was given), judged afterwards: whether the evidence was there to be found.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub at_truth: Option<AtTruth>,
+}
+
+/// What the matcher's measures say of a pose: the share of the wireframe along 3D lines and
+/// the model lines they lie along ([`vision::matcher::support_at`]), and the share of the
+/// camera-facing wireframe along each image's edgels ([`vision::matcher::verify::image_support`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AtTruth {
+    pub support_fraction: f64,
+    pub lines: usize,
+    pub image_support: f64,
+    pub image_support_right: Option<f64>,
 }
 
 /// A report counts as correct within these.
@@ -598,7 +613,7 @@ pub fn locate_stats(
         }
     }
     for (i, o) in scene.objects.iter().enumerate().filter(|(i, _)| eligible[*i] && !taken[*i]) {
-        stats.missed.push(Missed { id: i, model: o.model.clone(), visible_fraction: visible[i] });
+        stats.missed.push(Missed { id: i, model: o.model.clone(), visible_fraction: visible[i], at_truth: None });
     }
     stats
 }

@@ -56,12 +56,25 @@ pub struct Line3 {
     pub disparity_start: f64,
     pub disparity_end: f64,
     /// The 2D line it came from (index into the 2D lines) and how many matches carried it
-    /// (0 for a line completed from its neighbours, see [`complete_flat_lines`]).
+    /// (0 for a line along the rasters, see [`Depths`]).
     pub line2: u32,
     pub matches: u32,
+    /// Where its depths came from.
+    pub depths: Depths,
     /// The left edgels whose matches agree with the fit (the inliers).
     #[serde(skip)]
     pub inliers: Vec<u32>,
+}
+
+/// Where a 3D line's depths came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum Depths {
+    /// PMF's matches along it, fitted ([`fit_lines3d`]).
+    Matches,
+    /// The 3D lines meeting its ends ([`complete_flat_lines`]).
+    Corners,
+    /// The right image's line through the same rows ([`super::flat_lines`]).
+    WholeLine,
 }
 
 impl Line3 {
@@ -288,6 +301,7 @@ pub fn fit_lines3d(
             disparity_end,
             line2: li as u32,
             matches: points.len() as u32,
+            depths: Depths::Matches,
             inliers: points
                 .iter()
                 .filter(|&&(s, d, _)| (d - alpha - beta * s).abs() <= VOUCH_PX)
@@ -372,6 +386,7 @@ pub fn complete_flat_lines(
             disparity_end: d_end,
             line2: li as u32,
             matches: 0,
+            depths: Depths::Corners,
             inliers: Vec::new(),
         });
     }

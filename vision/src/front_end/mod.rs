@@ -12,6 +12,7 @@
 //! - [`pmf`]: PMF stereo matching of rectified edgels.
 //! - [`lines2d`]: strings cut into straight lines by recursive fit and segment.
 //! - [`lines3d`]: disparity fitted along each 2D line, its ends triangulated into 3D segments.
+//! - [`flat_lines`]: lines along the rasters, which PMF cannot match, matched whole between the images.
 //! - [`pipeline`]: the stages above run in order on one whole stereo pair ([`FrontEnd`]).
 //! - [`workspace`]: the disparities searched: the rig's workspace, and nothing under the table.
 //! - [`table_top`]: the table's top found in the 3D lines, where no cell layout places it.
@@ -22,6 +23,7 @@
 
 mod blur;
 pub mod canny;
+pub mod flat_lines;
 pub mod lines2d;
 pub mod lines3d;
 pub mod noise;

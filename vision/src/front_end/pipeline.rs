@@ -1,6 +1,7 @@
 //! The vision front end on one stereo pair: what `marvin stereo` and `marvin eval vision` run.
 
 use super::canny::{CannyParams, EdgeMap, Edgel};
+use super::flat_lines::{Images, match_flat_lines};
 use super::lines2d::Line2;
 use super::lines3d::{Line3, Lines3dParams, complete_flat_lines, fit_lines3d, lines2d_split_at_depth_breaks};
 use super::pmf::{Match, PmfParams, pmf, right_figural_continuity};
@@ -88,7 +89,8 @@ pub fn run(
 }
 
 /// The front end: Canny on both images, strings of the left, rectification, PMF (searching
-/// `workspace`, for a calibrated pair), 2D and 3D lines; where `workspace` knows the table,
+/// `workspace`, for a calibrated pair), 2D and 3D lines, the lines along the rasters matched
+/// whole ([`super::flat_lines`]); where `workspace` knows the table,
 /// the lines on it with soft edges set apart ([`super::soft_edges`]).
 pub fn run_with(
     left: &GreyImage,
@@ -135,6 +137,14 @@ pub fn run_with(
         let p = Lines3dParams::default();
         let mut lines3d = fit_lines3d(&lines2d, &left_strings, &left_rectified, &matches, rect, &p);
         complete_flat_lines(&lines2d, &left_strings, &mut lines3d, rect, &p, 6);
+        let images = Images {
+            lines2d: &lines2d,
+            left_strings: &left_strings,
+            left_rectified: &left_rectified,
+            right_strings: &right_strings,
+            right_rectified: &right_rectified,
+        };
+        match_flat_lines(&images, rect, &(disparity_min, disparity_max, floor), &mut lines3d);
         lines3d
     });
     watch.lap("geom3d");

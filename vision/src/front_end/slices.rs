@@ -269,7 +269,7 @@ pub fn run_sliced(
         .collect();
     let slices_ms = clock.elapsed().as_secs_f64() * 1e3;
     let clock = Instant::now();
-    let mut fe = join(&slices, rect, left.width, left.height);
+    let mut fe = join(&slices, rect.clone(), left.width, left.height);
     // Per stage, the processor time summed over the slices (they overlap in wall time); then
     // the wall time of all slices and of the Joiner.
     for (name, _) in &slices[0].timings_ms {
@@ -278,10 +278,27 @@ pub fn run_sliced(
     }
     fe.timings_ms.push(("slices", slices_ms));
     fe.timings_ms.push(("join", clock.elapsed().as_secs_f64() * 1e3));
+    let clock = Instant::now();
+    along_the_rasters(&mut fe, &rect, workspace);
+    fe.timings_ms.push(("flat_lines", clock.elapsed().as_secs_f64() * 1e3));
     if let Some(table) = &workspace.table {
         fe.set_apart_soft_lines(table);
     }
     fe
+}
+
+/// The joined image's lines along the rasters matched whole ([`super::flat_lines`]): the right
+/// image's strings are linked over the whole image, as its lines may cross the seams.
+fn along_the_rasters(fe: &mut FrontEnd, rect: &Rectification, workspace: &Workspace) {
+    let right_strings = link_strings(&fe.right, MIN_STRING);
+    let images = super::flat_lines::Images {
+        lines2d: &fe.lines2d,
+        left_strings: &fe.left_strings,
+        left_rectified: &fe.left_rectified,
+        right_strings: &right_strings,
+        right_rectified: &fe.right_rectified,
+    };
+    super::flat_lines::match_flat_lines(&images, rect, &workspace.search(rect), &mut fe.lines3d);
 }
 
 /// The Joiner. Edgels and matches come from the slice that owns their row. A string that lay
@@ -395,6 +412,7 @@ fn right_continuity_over_the_image(fe: &mut FrontEnd, rect: &Rectification) -> V
     for m in &fe.matches {
         dropped[m.left as usize] = false;
     }
+    fe.right_rectified = right_rect;
     dropped
 }
 

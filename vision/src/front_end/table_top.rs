@@ -161,6 +161,7 @@ mod tests {
             disparity_end: 0.0,
             line2: 0,
             matches: 10,
+            depths: super::super::lines3d::Depths::Matches,
             inliers: Vec::new(),
         }
     }
