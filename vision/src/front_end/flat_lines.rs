@@ -218,9 +218,8 @@ fn line3_of(line: &Line2, li: usize, row: &RowLine, ends: Ends, rect: &Rectifica
 mod tests {
     use super::*;
     use crate::front_end::canny::EdgeMap;
-    use crate::front_end::pipeline::MIN_STRING;
     use crate::front_end::rectify::tests::verged_pair;
-    use crate::front_end::strings::link_strings;
+    use crate::front_end::strings::{MIN_STRING, link_strings};
     use nalgebra::Point3;
 
     /// A segment given in the rectified frame (metres), as the `cam` frame has it.

@@ -12,8 +12,7 @@ use crate::image::GreyImage;
 use mesh::StereoCalibration;
 use std::time::Instant;
 
-/// Strings shorter than this many edgels are dropped.
-pub const MIN_STRING: usize = 5;
+pub use super::strings::MIN_STRING;
 
 /// Everything the front end found in a pair, with the time each stage took.
 #[derive(Debug, Clone)]

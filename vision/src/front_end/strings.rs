@@ -11,6 +11,10 @@ pub struct EdgeString {
     pub edgels: Vec<u32>,
 }
 
+/// Strings shorter than this many edgels are dropped (by the front end's callers of
+/// [`link_strings`]).
+pub const MIN_STRING: usize = 5;
+
 /// Links the edgels of `map` into strings, dropping those of fewer than `min_len` edgels.
 pub fn link_strings(map: &EdgeMap, min_len: usize) -> Vec<EdgeString> {
     let n = map.edgels.len();
