@@ -21,14 +21,17 @@
 use super::canny::Edgel;
 use super::lines2d::{Line2, Lines2dParams, fit_lines};
 use super::lines3d::{Depths, Line3};
+use super::pmf::{PmfParams, angle_diff};
 use super::rectify::Rectification;
 use super::strings::EdgeString;
 use super::workspace::DisparityPlane;
 
-/// Lines nearer the rasters than this (radians) carry no PMF match (as
-/// `PmfParams::min_angle_to_raster`), and are the ones matched here...
-pub const FLAT_ANGLE: f32 = 0.35;
-/// ...unless nearer still than this: over a line's few rows the difference of two lines' `x`
+/// Lines nearer the rasters than PMF's `min_angle_to_raster` carry no PMF match, and are the
+/// ones matched here...
+fn flat_angle() -> f32 {
+    PmfParams::default().min_angle_to_raster
+}
+/// ...unless nearer still than this (radians): over a line's few rows the difference of two lines' `x`
 /// goes as the error of their slopes over the sine of this angle.
 pub const MIN_ANGLE: f32 = 0.08;
 /// Shortest line matched, pixels.
@@ -90,9 +93,7 @@ pub type Search = (f32, f32, Option<DisparityPlane>);
 /// The rows both lines run through and the disparity at each end of them, if `right` could
 /// be `left`'s partner.
 fn disparities(left: &RowLine, right: &RowLine, (min, max, floor): &Search) -> Option<Ends> {
-    let turn = (left.gradient - right.gradient + std::f32::consts::PI).rem_euclid(std::f32::consts::TAU)
-        - std::f32::consts::PI;
-    if turn.abs() > MAX_GRADIENT_TURN {
+    if angle_diff(left.gradient, right.gradient) > MAX_GRADIENT_TURN {
         return None;
     }
     let (y0, y1) = (left.y0.max(right.y0), left.y1.min(right.y1));
@@ -147,7 +148,7 @@ pub fn match_flat_lines(images: &Images, rect: &Rectification, search: &Search, 
 /// The right image's lines near the rasters, as functions of the row.
 fn right_row_lines(images: &Images) -> Vec<RowLine> {
     let (strings, edgels) = (images.right_strings, images.right_rectified);
-    let band = (MIN_ANGLE - RIGHT_ANGLE_SLACK / 2.0, FLAT_ANGLE + RIGHT_ANGLE_SLACK);
+    let band = (MIN_ANGLE - RIGHT_ANGLE_SLACK / 2.0, flat_angle() + RIGHT_ANGLE_SLACK);
     fit_lines(edgels, strings, &Lines2dParams::default())
         .iter()
         .filter_map(|l| RowLine::of(l, &strings[l.string as usize], edgels, band))
@@ -168,7 +169,7 @@ fn left_row_lines(images: &Images, lines3d: &[Line3]) -> Vec<(usize, RowLine)> {
         .filter(|(i, _)| !has_own[*i])
         .filter_map(|(i, l)| {
             let string = &images.left_strings[l.string as usize];
-            Some((i, RowLine::of(l, string, images.left_rectified, (MIN_ANGLE, FLAT_ANGLE))?))
+            Some((i, RowLine::of(l, string, images.left_rectified, (MIN_ANGLE, flat_angle()))?))
         })
         .collect()
 }

@@ -127,7 +127,7 @@ struct Candidate {
     alive: bool,
 }
 
-fn angle_diff(a: f32, b: f32) -> f32 {
+pub(crate) fn angle_diff(a: f32, b: f32) -> f32 {
     use std::f32::consts::{PI, TAU};
     ((a - b + PI).rem_euclid(TAU) - PI).abs()
 }

@@ -269,7 +269,7 @@ pub fn run_sliced(
         .collect();
     let slices_ms = clock.elapsed().as_secs_f64() * 1e3;
     let clock = Instant::now();
-    let mut fe = join(&slices, rect.clone(), left.width, left.height);
+    let mut fe = join(&slices, rect.clone(), (left.width, left.height), &workspace.search(&rect));
     // Per stage, the processor time summed over the slices (they overlap in wall time); then
     // the wall time of all slices and of the Joiner.
     for (name, _) in &slices[0].timings_ms {
@@ -278,34 +278,22 @@ pub fn run_sliced(
     }
     fe.timings_ms.push(("slices", slices_ms));
     fe.timings_ms.push(("join", clock.elapsed().as_secs_f64() * 1e3));
-    let clock = Instant::now();
-    along_the_rasters(&mut fe, &rect, workspace);
-    fe.timings_ms.push(("flat_lines", clock.elapsed().as_secs_f64() * 1e3));
     if let Some(table) = &workspace.table {
         fe.set_apart_soft_lines(table);
     }
     fe
 }
 
-/// The joined image's lines along the rasters matched whole ([`super::flat_lines`]): the right
-/// image's strings are linked over the whole image, as its lines may cross the seams.
-fn along_the_rasters(fe: &mut FrontEnd, rect: &Rectification, workspace: &Workspace) {
-    let right_strings = link_strings(&fe.right, MIN_STRING);
-    let images = super::flat_lines::Images {
-        lines2d: &fe.lines2d,
-        left_strings: &fe.left_strings,
-        left_rectified: &fe.left_rectified,
-        right_strings: &right_strings,
-        right_rectified: &fe.right_rectified,
-    };
-    super::flat_lines::match_flat_lines(&images, rect, &workspace.search(rect), &mut fe.lines3d);
-}
-
 /// The Joiner. Edgels and matches come from the slice that owns their row. A string that lay
 /// wholly in one slice's own rows keeps that slice's 2D and 3D lines as they are; edgels of
 /// strings that crossed a seam are linked again across it, and their 2D and 3D lines fitted
 /// afresh from the joined strings and the owners' matches, as one processor would have.
-pub fn join(slices: &[SliceResult], rect: Rectification, width: usize, height: usize) -> FrontEnd {
+pub fn join(
+    slices: &[SliceResult],
+    rect: Rectification,
+    (width, height): (usize, usize),
+    search: &super::flat_lines::Search,
+) -> FrontEnd {
     let mut fe = FrontEnd::empty(Some(rect.clone()));
     fe.left = EdgeMap::new(width, height);
     fe.right = EdgeMap::new(width, height);
@@ -339,7 +327,7 @@ pub fn join(slices: &[SliceResult], rect: Rectification, width: usize, height: u
     // Continuity along the right image's strings is judged on whole strings, as one processor
     // would (a slice sees a right string cut at its rows); the strings whose matches it
     // changes have their lines fitted afresh below.
-    let dropped = right_continuity_over_the_image(&mut fe, &rect);
+    let (dropped, right_strings) = right_continuity_over_the_image(&mut fe, &rect);
     // A string some slice saw whole, in the same order, keeps that slice's lines; the others
     // (those that crossed a seam) have their 2D and 3D lines fitted afresh.
     let mut seen_whole: std::collections::HashMap<Vec<u32>, (usize, usize)> = Default::default();
@@ -389,14 +377,24 @@ pub fn join(slices: &[SliceResult], rect: Rectification, width: usize, height: u
     fe.lines3d.extend(lines3d);
     // Flat lines take their 3D ends from the lines meeting them, whichever slice those came from.
     complete_flat_lines(&fe.lines2d, &fe.left_strings, &mut fe.lines3d, &rect, &p3, 6);
+    // And lines along the rasters matched whole, the right image's strings linked over it all
+    // (its lines may cross the seams).
+    let images = super::flat_lines::Images {
+        lines2d: &fe.lines2d,
+        left_strings: &fe.left_strings,
+        left_rectified: &fe.left_rectified,
+        right_strings: &right_strings,
+        right_rectified: &fe.right_rectified,
+    };
+    super::flat_lines::match_flat_lines(&images, &rect, search, &mut fe.lines3d);
     // As the whole-image front end does: vouch only for matches on 3D lines.
     fe.matches.retain(|m| inlier[m.left as usize]);
     fe
 }
 
 /// [`right_figural_continuity`] over the joined matches (right edgels indexed in the whole
-/// right image); which left edgels lost their match.
-fn right_continuity_over_the_image(fe: &mut FrontEnd, rect: &Rectification) -> Vec<bool> {
+/// right image); which left edgels lost their match, and the right image's strings.
+fn right_continuity_over_the_image(fe: &mut FrontEnd, rect: &Rectification) -> (Vec<bool>, Vec<EdgeString>) {
     let right_rect = rect.rectify_edgels(Side::Right, &fe.right.edgels);
     let right_strings = link_strings(&fe.right, MIN_STRING);
     let mut dropped = vec![false; fe.left.edgels.len()];
@@ -413,7 +411,7 @@ fn right_continuity_over_the_image(fe: &mut FrontEnd, rect: &Rectification) -> V
         dropped[m.left as usize] = false;
     }
     fe.right_rectified = right_rect;
-    dropped
+    (dropped, right_strings)
 }
 
 /// Whether slice `s` owns its left edgel `i` (the edgel's row is one of the slice's own).
