@@ -171,7 +171,10 @@ pub enum EvalTarget {
     /// (of all reports), `match_ms_median`, `located_by_model`, `unsettled_scenes`, `missed`
     /// (each eligible object not located: seed, model, visible share, and `at_truth`, the
     /// matcher's own measures at its true pose, judged afterwards: share of the wireframe along
-    /// 3D lines, model lines seen, share along each image's edgels).
+    /// 3D lines, model lines seen, share along each image's edgels), `false_reports` (each report
+    /// that matched no object: seed, model, support, the nearest object of its model and of any
+    /// (id, mm, deg), `world_m`, where it put the model's origin in the world, and
+    /// `as_reported`, the same measures as `at_truth` at its own pose).
     Locate {
         world: PathBuf,
         #[arg(long, default_value_t = 50, value_parser = clap::value_parser!(u64).range(1..=super::args::MAX_COUNT))]

@@ -82,6 +82,7 @@ pub fn eval(b: &Batch, sources: &Sources) -> anyhow::Result<()> {
         let match_ms = clock.elapsed().as_secs_f64() * 1e3;
         let mut stats = locate_stats(&located, &p.scene, &scn.library, &p.cams, &p.left.depth, &symmetry);
         measure_at_truth(&mut stats.missed, &p.scene, &calib, (&models, &lines, &params), &evidence);
+        measure_as_reported(&mut stats.false_reports, &located, (&models, &lines, &params), &evidence);
         let line = format!(
             "located {}/{} visible objects, {} false of {} reports",
             stats.located, stats.eligible, stats.false_positives, stats.reports
@@ -104,14 +105,37 @@ fn measure_at_truth(
     for m in missed {
         let Some(model) = models.iter().find(|x| x.name == m.model) else { continue };
         let pose = calib.left.cam_from_world() * scene.objects[m.id].world_from_model;
-        let (support_fraction, seen) = vision::matcher::support_at(model, &pose, lines, params);
-        let image_support = vision::matcher::verify::image_support(model, &pose, evidence);
-        let image_support_right = evidence
-            .right
-            .as_ref()
-            .map(|r| vision::matcher::verify::image_support(model, &(r.right_from_cam * pose), &r.ev));
-        m.at_truth = Some(marvin::eval::AtTruth { support_fraction, lines: seen, image_support, image_support_right });
+        m.at_truth = Some(measure_at(model, &pose, (lines, params), evidence));
     }
+}
+
+/// Each false report measured at its own pose as [`measure_at_truth`] measures a missed object.
+fn measure_as_reported(
+    false_reports: &mut [marvin::eval::FalseReport],
+    located: &[vision::matcher::Located],
+    (models, lines, params): (&[vision::matcher::MatcherModel], &[vision::matcher::Seg], &vision::matcher::MatchParams),
+    evidence: &vision::matcher::verify::ImageEvidence,
+) {
+    for f in false_reports {
+        let Some(model) = models.iter().find(|x| x.name == f.model) else { continue };
+        f.as_reported = Some(measure_at(model, &located[f.index].cam_from_model, (lines, params), evidence));
+    }
+}
+
+/// The matcher's measures of `model` at `pose` (`cam`).
+fn measure_at(
+    model: &vision::matcher::MatcherModel,
+    pose: &Isometry3<f64>,
+    (lines, params): (&[vision::matcher::Seg], &vision::matcher::MatchParams),
+    evidence: &vision::matcher::verify::ImageEvidence,
+) -> marvin::eval::AtTruth {
+    let (support_fraction, seen) = vision::matcher::support_at(model, pose, lines, params);
+    let image_support = vision::matcher::verify::image_support(model, pose, evidence);
+    let image_support_right = evidence
+        .right
+        .as_ref()
+        .map(|r| vision::matcher::verify::image_support(model, &(r.right_from_cam * pose), &r.ev));
+    marvin::eval::AtTruth { support_fraction, lines: seen, image_support, image_support_right }
 }
 
 /// The summary of `eval locate` records (sorted by seed), as one process over them prints it.

@@ -421,6 +421,56 @@ mod tests {
         assert_eq!(order("t_piece"), 2);
         assert_eq!(order("u_channel"), 2);
     }
+
+    /// A false report names where it puts its model in the world: the pose vision gave, in the
+    /// camera it was given, carried into the world through that camera's place (worked here
+    /// from a world point chosen first), and what lay nearest.
+    #[test]
+    fn a_false_report_says_where_in_the_world_it_lies() {
+        use nalgebra::{Isometry3, Point3, Vector3};
+        let cam = mesh::PinholeCamera::looking_at(
+            (512, 512),
+            1000.0,
+            [255.5, 255.5],
+            Point3::new(0.1, -0.6, 0.5),
+            Point3::origin(),
+            Vector3::z(),
+        );
+        let settle = sim::physics::SettleReport {
+            simulated_s: 1.0,
+            steps: 60,
+            at_rest: true,
+            max_linear_speed: 0.0,
+            max_angular_speed: 0.0,
+            max_contact_depth: 0.0,
+            drops: 1,
+        };
+        let block = sim::scene::SceneObject {
+            id: 0,
+            model: "block".into(),
+            world_from_model: Isometry3::translation(0.02, 0.03, 0.0125),
+        };
+        let scene = sim::Scene { seed: 1, statics: Vec::new(), objects: vec![block], arm: Vec::new(), settle };
+        let truths = vec![(0, cam.cam_from_world() * scene.objects[0].world_from_model)];
+        let world_from_report = Isometry3::translation(-0.05, 0.07, 0.02);
+        let report = vision::matcher::Located {
+            model: "wedge".into(),
+            cam_from_model: cam.cam_from_world() * world_from_report,
+            support: 0.01,
+            support_fraction: 0.1,
+            scene_lines: Vec::new(),
+            image_support: 0.6,
+            grasps: Vec::new(),
+        };
+        let f = false_report(&report, &scene, &truths, &[Isometry3::identity()], &cam);
+        let want = [-0.05, 0.07, 0.02];
+        assert!(f.world_m.iter().zip(want).all(|(got, want)| (got - want).abs() < 1e-9), "{:?}", f.world_m);
+        assert_eq!(f.same_model, None, "no wedge in the scene");
+        let (id, model, mm): (usize, String, f64) = f.nearest.clone().unwrap();
+        let apart = (Vector3::<f64>::new(-0.05, 0.07, 0.02) - Vector3::new(0.02, 0.03, 0.0125)).norm() * 1e3;
+        assert_eq!((id, model.as_str()), (0, "block"));
+        assert!((mm - apart).abs() < 1e-6, "{mm} mm, {apart} mm apart");
+    }
 }
 
 /// How located objects compare with the truth.
@@ -455,6 +505,17 @@ pub struct FalseReport {
     pub same_model: Option<(usize, f64, f64)>,
     /// The nearest object of any model to the report's origin: its id, model, distance (mm).
     pub nearest: Option<(usize, String, f64)>,
+    /// Where the report puts the model's origin in the world (metres), through the calibration
+    /// vision was given: to see where in the cell false reports gather.
+    #[serde(default)]
+    pub world_m: [f64; 3],
+    /// The report's place in the matcher's list of reports for its scene.
+    #[serde(default)]
+    pub index: usize,
+    /// The matcher's own measures at the report's pose (as `Missed::at_truth` at an object's),
+    /// to set beside those of the object it was taken for.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub as_reported: Option<AtTruth>,
 }
 
 /// An eligible object that was not located.
@@ -592,7 +653,7 @@ pub fn locate_stats(
         stats.by_model.entry(o.model.clone()).or_default()[0] += usize::from(e);
     }
     let mut taken = vec![false; scene.objects.len()];
-    for loc in located {
+    for (index, loc) in located.iter().enumerate() {
         let best = truths
             .iter()
             .filter(|(i, _)| scene.objects[*i].model == loc.model && !taken[*i])
@@ -608,7 +669,9 @@ pub fn locate_stats(
             }
             _ => {
                 stats.false_positives += 1;
-                stats.false_reports.push(false_report(loc, scene, &truths, &symmetry[&loc.model]));
+                stats
+                    .false_reports
+                    .push(FalseReport { index, ..false_report(loc, scene, &truths, &symmetry[&loc.model], cam) });
             }
         }
     }
@@ -624,6 +687,7 @@ fn false_report(
     scene: &sim::Scene,
     truths: &[(usize, nalgebra::Isometry3<f64>)],
     symmetry: &[nalgebra::Isometry3<f64>],
+    cam: &mesh::PinholeCamera,
 ) -> FalseReport {
     let same_model = truths
         .iter()
@@ -644,5 +708,8 @@ fn false_report(
         image_support: loc.image_support,
         same_model,
         nearest,
+        world_m: (cam.world_from_cam * loc.cam_from_model).translation.vector.into(),
+        index: 0,
+        as_reported: None,
     }
 }
