@@ -462,10 +462,11 @@ mod tests {
             image_support: 0.6,
             grasps: Vec::new(),
         };
-        let f = false_report(&report, &scene, &truths, &[Isometry3::identity()], &cam);
+        let f = false_report((3, &report), &scene, &truths, &[Isometry3::identity()], &cam);
         let want = [-0.05, 0.07, 0.02];
         assert!(f.world_m.iter().zip(want).all(|(got, want)| (got - want).abs() < 1e-9), "{:?}", f.world_m);
         assert_eq!(f.same_model, None, "no wedge in the scene");
+        assert_eq!(f.index, 3, "the report's place in the matcher's list");
         let (id, model, mm): (usize, String, f64) = f.nearest.clone().unwrap();
         let apart = (Vector3::<f64>::new(-0.05, 0.07, 0.02) - Vector3::new(0.02, 0.03, 0.0125)).norm() * 1e3;
         assert_eq!((id, model.as_str()), (0, "block"));
@@ -669,9 +670,7 @@ pub fn locate_stats(
             }
             _ => {
                 stats.false_positives += 1;
-                stats
-                    .false_reports
-                    .push(FalseReport { index, ..false_report(loc, scene, &truths, &symmetry[&loc.model], cam) });
+                stats.false_reports.push(false_report((index, loc), scene, &truths, &symmetry[&loc.model], cam));
             }
         }
     }
@@ -683,7 +682,7 @@ pub fn locate_stats(
 
 /// What lay nearest a report that matched nothing.
 fn false_report(
-    loc: &vision::matcher::Located,
+    (index, loc): (usize, &vision::matcher::Located),
     scene: &sim::Scene,
     truths: &[(usize, nalgebra::Isometry3<f64>)],
     symmetry: &[nalgebra::Isometry3<f64>],
@@ -709,7 +708,7 @@ fn false_report(
         same_model,
         nearest,
         world_m: (cam.world_from_cam * loc.cam_from_model).translation.vector.into(),
-        index: 0,
+        index,
         as_reported: None,
     }
 }
