@@ -130,7 +130,7 @@ fn locate_all_in_pool(
         }
     }
     if let Some(table) = p.table.as_ref().filter(|_| image.is_some()) {
-        super::table::drop_floating(models, table, &mut kept);
+        super::table::drop_floating_or_sunk(models, table, &mut kept);
     }
     super::overlap::drop_the_weaker(models, &mut kept, |m, l| matched_length(m, l, scene, p) * l.image_support.sqrt());
     kept

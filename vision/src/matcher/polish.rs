@@ -300,7 +300,18 @@ pub(crate) fn turn_in_stereo(
             let off_the_table =
                 |l| sinks(l, model, &r.cam_from_model) || super::table::floats_flat(l, model, &r.cam_from_model);
             let sunk = level.is_some_and(off_the_table);
-            best_turn(model, (scene, p), (&views, &others), turns, (&r.cam_from_model, sunk.then_some(&rests)))
+            // A turn may not sink into the table where the report does not: no part lies in
+            // it. (Realistic `dense.toml` tuning seed 5393: a wedge on its bottom, read right,
+            // was turned onto its slope 5.5 mm deep, by the image where they differ.)
+            let sinks_at = |pose: &Isometry3<f64>| !sunk && level.is_some_and(|l| sinks(l, model, pose));
+            best_turn(
+                model,
+                (scene, p),
+                (&views, &others),
+                turns,
+                (&r.cam_from_model, sunk.then_some(&rests)),
+                &sinks_at,
+            )
         })
         .collect();
     kept.iter_mut()
@@ -345,18 +356,19 @@ fn sinks((table, level): (&super::model::Table, f64), model: &MatcherModel, pose
     super::table::lowest_height(table, model, pose) < level - SUNK_M
 }
 
-/// Whether a pose rests on the table (see [`SUNK_M`]).
-type Rests<'a> = &'a (dyn Fn(&Isometry3<f64>) -> bool + Sync);
+/// A test of a pose against the table: whether it rests on it, or sinks into it (see [`SUNK_M`]).
+type TableTest<'a> = &'a (dyn Fn(&Isometry3<f64>) -> bool + Sync);
 
 /// The best of the turns of `model` at `report` that [`turn_in_stereo`] takes, polished, with
 /// `others` (in each view's camera frame) hiding what lies behind them; where the report is
-/// sunk, with whether a pose rests ([`SUNK_M`]).
+/// sunk, with whether a pose rests ([`SUNK_M`]); turns for which `sinks_at` holds are not taken.
 fn best_turn(
     model: &MatcherModel,
     (scene, p): (&[Seg], &MatchParams),
     (views, others): (&[View], &[Vec<&Solid>]),
     turns: &super::shading::TurnedCandidates,
-    (report, sunk): (&Isometry3<f64>, Option<Rests>),
+    (report, sunk): (&Isometry3<f64>, Option<TableTest>),
+    sinks_at: TableTest,
 ) -> Option<Isometry3<f64>> {
     use super::verify::{image_support, image_support_at_least};
     use rayon::prelude::*;
@@ -385,6 +397,7 @@ fn best_turn(
         })
         .filter_map(|start| turns.refit(model, (scene, p), ev, start))
         .map(|c| polished(model, &c.pose, others, views, None))
+        .filter(|pose| !sinks_at(pose))
         .map(|pose| (in_view(&pose), pose))
         .filter(|(then, pose)| {
             let (then_sum, then_support) = (then.iter().sum::<f64>(), support(pose));

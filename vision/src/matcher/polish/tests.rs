@@ -329,3 +329,38 @@ fn a_solid_between_camera_and_report_may_hide_it() {
     assert_eq!(hiders(&[&aside]), 0);
     assert_eq!(hiders(&[&aside, &between]), 1);
 }
+
+/// A wedge resting on its bottom, read so, where both images show it turned onto its slope
+/// (as another part's edges or a shadow can make them seem) on the 3D lines the two share:
+/// with no table known the images turn it, with the table the turn would sink into it and it
+/// stands.
+#[test]
+fn a_turn_that_would_sink_into_the_table_is_not_taken() {
+    let (wedge, left, right, on_the_floor, right_from_cam) = wedge_on_table();
+    let table = Table::from_cam_from_table(&left.cam_from_world());
+    let up = Vector3::from(table.up);
+    let truth =
+        Translation3::from(-up * super::super::table::lowest_height(&table, &wedge, &on_the_floor)) * on_the_floor;
+    let sunk = truth * crate::matcher::turns::of(&wedge)[4];
+    let sinks = super::super::table::lowest_height(&table, &wedge, &sunk);
+    assert!(sinks < -SUNK_M, "the turn sinks {:.2} mm", sinks * 1e3);
+    let (left_edges, _) = model_edges(&wedge, &sunk, &left);
+    let (right_edges, _) = model_edges(&wedge, &(right_from_cam * sunk), &right);
+    let ev = ImageEvidence::new(&left, &left_edges, Vec::new())
+        .with_right(RightImage { ev: ImageEvidence::new(&right, &right_edges, Vec::new()), right_from_cam });
+    let block = model("block");
+    let beside = |x: f64| report(&block, left.cam_from_world() * Isometry3::translation(x, -0.1, 0.015));
+    let models = [wedge.clone(), block.clone()];
+    let turned = |p: &MatchParams| {
+        let lines = lines_along(&wedge, &sunk, true_lines(&wedge, &truth), p);
+        let mut kept = [report(&wedge, truth), beside(-0.12), beside(0.14), beside(-0.22)];
+        let turns = crate::matcher::shading::TurnedCandidates::default();
+        let turned = turn_in_stereo(&models, (&lines, p), &ev, &turns, &mut kept);
+        (turned[0], kept[0].cam_from_model)
+    };
+    let (was_turned, got) = turned(&MatchParams::default());
+    let (mm, deg) = off_by(&sunk, &got);
+    assert!(was_turned && mm < 0.1 && deg < 0.1, "with no table, turned to {mm:.3} mm, {deg:.3} deg off the turn");
+    let on_table = MatchParams { table: Some(table), ..MatchParams::default() };
+    assert_eq!(turned(&on_table), (false, truth), "with the table it stands");
+}
