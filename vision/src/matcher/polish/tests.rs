@@ -34,6 +34,21 @@ fn wedge_on_table() -> (MatcherModel, mesh::PinholeCamera, mesh::PinholeCamera, 
     (model("wedge"), left, right, truth, right_from_cam)
 }
 
+/// A model, the left and right cameras, the table, the model's pose and the right camera's
+/// frame from the left's.
+type OnTable = (MatcherModel, mesh::PinholeCamera, mesh::PinholeCamera, Table, Isometry3<f64>, Isometry3<f64>);
+
+/// [`wedge_on_table`] with the table known, the wedge's bottom on its top.
+fn wedge_resting_on_table() -> OnTable {
+    let (wedge, left, right, on_the_floor, right_from_cam) = wedge_on_table();
+    let table = Table::from_cam_from_table(&left.cam_from_world());
+    // The fixture's pose puts the model's origin on the top; its bottom goes there.
+    let up = Vector3::from(table.up);
+    let truth =
+        Translation3::from(-up * super::super::table::lowest_height(&table, &wedge, &on_the_floor)) * on_the_floor;
+    (wedge, left, right, table, truth, right_from_cam)
+}
+
 /// `model` reported at `pose`, turned in stereo on `lines` and `ev`: whether it was turned,
 /// and the pose it ends at.
 fn turned_in_stereo(
@@ -264,12 +279,7 @@ fn a_wedge_on_its_end_read_end_for_end_on_its_slope_is_turned_back() {
 /// looks' refits on the tuning seeds sank 1.7-2.1 mm.) Without the table the reading stands.
 #[test]
 fn a_wedge_read_sunk_in_the_table_is_turned_where_the_images_tie() {
-    let (wedge, left, right, on_the_floor, right_from_cam) = wedge_on_table();
-    let table = Table::from_cam_from_table(&left.cam_from_world());
-    // The fixture's pose puts the model's origin on the top; its bottom goes there.
-    let up = Vector3::from(table.up);
-    let truth =
-        Translation3::from(-up * super::super::table::lowest_height(&table, &wedge, &on_the_floor)) * on_the_floor;
+    let (wedge, left, right, table, truth, right_from_cam) = wedge_resting_on_table();
     let misread = truth * crate::matcher::turns::of(&wedge)[4];
     assert!(super::super::table::lowest_height(&table, &wedge, &truth).abs() < 1e-9);
     let sinks = super::super::table::lowest_height(&table, &wedge, &misread);
@@ -336,11 +346,7 @@ fn a_solid_between_camera_and_report_may_hide_it() {
 /// stands.
 #[test]
 fn a_turn_that_would_sink_into_the_table_is_not_taken() {
-    let (wedge, left, right, on_the_floor, right_from_cam) = wedge_on_table();
-    let table = Table::from_cam_from_table(&left.cam_from_world());
-    let up = Vector3::from(table.up);
-    let truth =
-        Translation3::from(-up * super::super::table::lowest_height(&table, &wedge, &on_the_floor)) * on_the_floor;
+    let (wedge, left, right, table, truth, right_from_cam) = wedge_resting_on_table();
     let sunk = truth * crate::matcher::turns::of(&wedge)[4];
     let sinks = super::super::table::lowest_height(&table, &wedge, &sunk);
     assert!(sinks < -SUNK_M, "the turn sinks {:.2} mm", sinks * 1e3);
