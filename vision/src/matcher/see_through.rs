@@ -42,6 +42,14 @@ impl SeenThrough {
     }
 }
 
+impl SeenThrough {
+    /// Whether the camera saw through some of the reading's place: at least [`MIN_BEHIND`]
+    /// matched edgels lie behind it, whatever lies in front of the rest.
+    pub fn in_part(&self) -> bool {
+        self.behind >= MIN_BEHIND
+    }
+}
+
 /// A reading is refuted by no fewer edgels behind it than this (a stretch of edge, not a
 /// stray match).
 const MIN_BEHIND: usize = 10;
@@ -116,10 +124,11 @@ mod tests {
         let (edges, lines) = drawn::model_edges(&block, &far, &cam);
         let ev = ImageEvidence::new(&cam, &edges, lines).with_depths(drawn::model_depths(&block, &far, &cam, &edges));
         let s = seen_through(&block, &near, &ev).unwrap();
-        assert!(s.inside >= 10 && s.refutes(), "{s:?}");
+        assert!(s.inside >= 10 && s.refutes() && s.in_part(), "{s:?}");
         let (edges, lines) = drawn::model_edges(&block, &near, &cam);
         let ev = ImageEvidence::new(&cam, &edges, lines).with_depths(drawn::model_depths(&block, &near, &cam, &edges));
         let s = seen_through(&block, &far, &ev).unwrap();
         assert_eq!(s.behind, 0, "{s:?}");
+        assert!(!s.in_part());
     }
 }
