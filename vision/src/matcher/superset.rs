@@ -269,11 +269,13 @@ pub(crate) fn larger_reading(
         .map(|(m, pose, _)| (*m, *pose))
         .collect();
     let shows_neither = |(m, pose, b): &(&MatcherModel, Isometry3<f64>, Beyond)| {
-        let mine = mine(m, pose);
+        let own_unshown = || {
+            let mine = mine(m, pose);
+            mine.px >= MIN_OWN_PX && mine.share <= OWN_UNSHOWN
+        };
         b.px >= MIN_BEYOND_PX
             && b.taken_px < MIN_BEYOND_PX
-            && mine.px >= MIN_OWN_PX
-            && mine.share <= OWN_UNSHOWN
+            && own_unshown()
             && !super::see_through::seen_through(m, pose, ev).is_some_and(|s| s.in_part())
     };
     if shown.is_empty() && beyond.iter().any(shows_neither) {
