@@ -40,9 +40,7 @@ impl SeenThrough {
     pub fn refutes(&self) -> bool {
         self.behind >= MIN_BEHIND && 2 * self.behind > self.inside
     }
-}
 
-impl SeenThrough {
     /// Whether the camera saw through some of the reading's place: at least [`MIN_BEHIND`]
     /// matched edgels lie behind it, whatever lies in front of the rest.
     pub fn in_part(&self) -> bool {

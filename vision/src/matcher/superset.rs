@@ -157,9 +157,9 @@ pub(crate) enum Larger {
     /// `widgets.toml` 5001-5200 unchanged (0.9935 / 0). Asking instead that most of the matched
     /// edgels lie behind ([`super::see_through::SeenThrough::refutes`]) gave one false report
     /// fewer on dense and lost three right brackets (two lamps 57, ideal dense 5182, and 6228
-    /// of the fresh seeds below); not asking stereo at all lost 4535 and 4551 too. On fresh tuning seeds, run once
-    /// after the choice: `dense.toml` 6001-6300 0.9172 / 51 -> 0.9172 / 50, `widgets.toml`
-    /// 6001-6300 unchanged (0.9860 / 8).
+    /// of the fresh seeds below); not asking stereo at all lost 4535 and 4551 too. On fresh
+    /// tuning seeds, run once after the choice: `dense.toml` 6001-6300 0.9172 / 51 -> 0.9172 /
+    /// 50, `widgets.toml` 6001-6300 unchanged (0.9860 / 8).
     Neither,
 }
 
@@ -323,7 +323,10 @@ pub(crate) fn settle_larger(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::front_end::canny::{EdgeMap, Edgel};
     use crate::matcher::fixtures::model;
+    use crate::matcher::verify::{Explained, drawn};
+    use nalgebra::{Point2, Translation3};
 
     /// A U-channel holds an L-bracket (its bar and one arm along the bracket's), and nothing
     /// holds the channel; the pose puts the bracket's wireframe on the channel's.
@@ -345,10 +348,6 @@ mod tests {
         }
         assert!(holding_poses(&channel, &bracket, &p).is_empty(), "a bracket is too small to hold a channel");
     }
-
-    use crate::front_end::canny::{EdgeMap, Edgel};
-    use crate::matcher::verify::{Explained, drawn};
-    use nalgebra::{Point2, Translation3};
 
     /// A U-channel lying on its side on the table, an L-bracket read in its corner (5 mm
     /// along, its bar end inside the channel's web), the camera that sees them, and the 3D
