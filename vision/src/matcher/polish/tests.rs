@@ -63,6 +63,25 @@ fn turned_in_stereo(
     (turned, kept[0].cam_from_model)
 }
 
+/// `wedge` reported at `pose` among three blocks resting on the table beside it (which give
+/// the scene its resting level), turned in stereo on `lines` and `ev`: whether the wedge was
+/// turned, and the pose it ends at.
+fn turned_among_blocks(
+    wedge: &MatcherModel,
+    left: &mesh::PinholeCamera,
+    (lines, p): (&[Seg], &MatchParams),
+    ev: &ImageEvidence,
+    pose: Isometry3<f64>,
+) -> (bool, Isometry3<f64>) {
+    let block = model("block");
+    let beside = |x: f64| report(&block, left.cam_from_world() * Isometry3::translation(x, -0.1, 0.015));
+    let models = [wedge.clone(), block.clone()];
+    let mut kept = [report(wedge, pose), beside(-0.12), beside(0.14), beside(-0.22)];
+    let turns = crate::matcher::shading::TurnedCandidates::default();
+    let turned = turn_in_stereo(&models, (lines, p), ev, &turns, &mut kept);
+    (turned[0], kept[0].cam_from_model)
+}
+
 /// Asserts that `model` misread at `poses.0` is turned in stereo back onto the truth, `poses.1`.
 fn assert_turned_back(
     model: &MatcherModel,
@@ -298,18 +317,9 @@ fn a_wedge_read_sunk_in_the_table_is_turned_where_the_images_tie() {
         (edges_of_both(&left, &Isometry3::identity()), edges_of_both(&right, &right_from_cam));
     let ev = ImageEvidence::new(&left, &left_edges, Vec::new())
         .with_right(RightImage { ev: ImageEvidence::new(&right, &right_edges, Vec::new()), right_from_cam });
-    let block = model("block");
-    let beside = |x: f64| {
-        let at = left.cam_from_world() * Isometry3::translation(x, -0.1, 0.015);
-        Located { model: block.name.clone(), ..report(&block, at) }
-    };
-    let models = [wedge.clone(), block.clone()];
     let turned = |p: &MatchParams| {
         let lines = lines_along(&wedge, &misread, true_lines(&wedge, &truth), p);
-        let mut kept = [report(&wedge, misread), beside(-0.12), beside(0.14), beside(-0.22)];
-        let turns = crate::matcher::shading::TurnedCandidates::default();
-        let turned = turn_in_stereo(&models, (&lines, p), &ev, &turns, &mut kept);
-        (turned[0], kept[0].cam_from_model)
+        turned_among_blocks(&wedge, &left, (&lines, p), &ev, misread)
     };
     let on_table = MatchParams { table: Some(table), ..MatchParams::default() };
     let (was_turned, got) = turned(&on_table);
@@ -354,15 +364,9 @@ fn a_turn_that_would_sink_into_the_table_is_not_taken() {
     let (right_edges, _) = model_edges(&wedge, &(right_from_cam * sunk), &right);
     let ev = ImageEvidence::new(&left, &left_edges, Vec::new())
         .with_right(RightImage { ev: ImageEvidence::new(&right, &right_edges, Vec::new()), right_from_cam });
-    let block = model("block");
-    let beside = |x: f64| report(&block, left.cam_from_world() * Isometry3::translation(x, -0.1, 0.015));
-    let models = [wedge.clone(), block.clone()];
     let turned = |p: &MatchParams| {
         let lines = lines_along(&wedge, &sunk, true_lines(&wedge, &truth), p);
-        let mut kept = [report(&wedge, truth), beside(-0.12), beside(0.14), beside(-0.22)];
-        let turns = crate::matcher::shading::TurnedCandidates::default();
-        let turned = turn_in_stereo(&models, (&lines, p), &ev, &turns, &mut kept);
-        (turned[0], kept[0].cam_from_model)
+        turned_among_blocks(&wedge, &left, (&lines, p), &ev, truth)
     };
     let (was_turned, got) = turned(&MatchParams::default());
     let (mm, deg) = off_by(&sunk, &got);
