@@ -129,6 +129,11 @@ fn locate_all_in_pool(
             }
         }
     }
+    // What the image shows beyond a report moves with it: judged again where it now lies.
+    if let Some(ev) = image.filter(|ev| !ev.lines.is_empty()) {
+        let replaced = super::superset::settle_larger_once_polished(models, (scene, p), ev, &mut kept);
+        super::polish::polish_those(models, (scene, p), ev, &mut kept, &replaced);
+    }
     if let Some(table) = p.table.as_ref().filter(|_| image.is_some()) {
         super::table::drop_floating_or_sunk(models, table, &mut kept);
     }
