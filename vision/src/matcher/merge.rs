@@ -131,7 +131,9 @@ fn locate_all_in_pool(
     }
     // What the image shows beyond a report moves with it: judged again where it now lies.
     if let Some(ev) = image.filter(|ev| !ev.lines.is_empty()) {
-        let replaced = super::superset::settle_larger_once_polished(models, (scene, p), ev, &mut kept);
+        let larger = super::superset::settle_larger_once_polished(models, (scene, p), ev, &mut kept);
+        let covering = super::covering::settle_covered_once_polished(models, (scene, p), ev, &mut kept);
+        let replaced: Vec<bool> = larger.iter().zip(&covering).map(|(a, b)| *a || *b).collect();
         super::polish::polish_those(models, (scene, p), ev, &mut kept, &replaced);
     }
     if let Some(table) = p.table.as_ref().filter(|_| image.is_some()) {
