@@ -68,6 +68,9 @@ pub struct MatcherModel {
     /// The half turns (model frame) that carry the part most nearly onto itself, worked out on
     /// first use ([`super::turns::of`]).
     pub(crate) turns: std::sync::OnceLock<Vec<Isometry3<f64>>>,
+    /// Those and the half turns of a slab of the part on itself, which only both images tell
+    /// from the report ([`super::turns::in_stereo`]), worked out on first use.
+    pub(crate) stereo_turns: std::sync::OnceLock<Vec<Isometry3<f64>>>,
     /// The outward normals of the faces the part can lie on (those of its convex hull's facets
     /// that are faces of the solid), model frame: a part lying flat on the table has one of
     /// them pointing straight down.
@@ -113,6 +116,7 @@ impl MatcherModel {
             grid: std::sync::OnceLock::new(),
             flat_corners: std::sync::OnceLock::new(),
             turns: std::sync::OnceLock::new(),
+            stereo_turns: std::sync::OnceLock::new(),
         }
     }
 }

@@ -254,7 +254,7 @@ fn hiders_in_view<'a>(
     (own, others)
 }
 
-/// Each report replaced by the best of its turns ([`super::turns::of`]), refitted on the 3D
+/// Each report replaced by the best of its turns ([`super::turns::in_stereo`]), refitted on the 3D
 /// lines and the left image and polished on both, that keeps [`TURN_KEEP_SUPPORT`] of its 3D
 /// support and, against the report, runs along edgels for as much of its wireframe in view as
 /// the report does in each image or more and for more in the two together, and for as much of
@@ -377,7 +377,7 @@ fn best_turn(
     let support = |pose: &Isometry3<f64>| support_at(model, pose, scene, p).0;
     let (now, now_support, now_whole) = (in_view(report), support(report), image_support(model, report, ev));
     let now_sum: f64 = now.iter().sum();
-    super::turns::of(model)
+    super::turns::in_stereo(model)
         .par_iter()
         .filter(|turn| !super::turns::is_symmetry(model, turn))
         .map(|turn| report * turn)

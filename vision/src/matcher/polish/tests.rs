@@ -374,3 +374,32 @@ fn a_turn_that_would_sink_into_the_table_is_not_taken() {
     let on_table = MatchParams { table: Some(table), ..MatchParams::default() };
     assert_eq!(turned(&on_table), (false, truth), "with the table it stands");
 }
+
+/// An L-bracket lying flat, read with its arm on its bar's other side (its bar turned half
+/// round on itself, on the bar's 3D lines alone: the arm gave none): turned back where both
+/// images show the arm where it is. The turn is one only the turn in stereo tries.
+#[test]
+fn an_l_bracket_read_with_its_arm_on_the_wrong_side_is_turned_back_by_both_images() {
+    let (bracket, (left, right)) = (model("l_bracket"), pair());
+    let truth = left.cam_from_world()
+        * Isometry3::from_parts(
+            Translation3::new(0.01, 0.02, 0.0125),
+            UnitQuaternion::from_euler_angles(0.0, 0.0, 0.7),
+        );
+    let right_from_cam = right.cam_from_world() * left.world_from_cam;
+    let bar_flip = Translation3::new(0.0, -0.035, 0.0) * UnitQuaternion::from_axis_angle(&Vector3::x_axis(), PI);
+    let bar_flip = Isometry3::from_parts(bar_flip.translation, bar_flip.rotation);
+    let same = |t: &Isometry3<f64>| {
+        let e = t.inverse() * bar_flip;
+        e.translation.vector.norm() < 1e-9 && e.rotation.angle() < 1e-9
+    };
+    assert!(!crate::matcher::turns::of(&bracket).iter().any(same), "not among the looks' turns");
+    let misread = truth * bar_flip;
+    let p = MatchParams::default();
+    let lines = lines_along(&bracket, &misread, true_lines(&bracket, &truth), &p);
+    let (left_edges, _) = model_edges(&bracket, &truth, &left);
+    let (right_edges, _) = model_edges(&bracket, &(right_from_cam * truth), &right);
+    let ev = ImageEvidence::new(&left, &left_edges, Vec::new())
+        .with_right(RightImage { ev: ImageEvidence::new(&right, &right_edges, Vec::new()), right_from_cam });
+    assert_turned_back(&bracket, (&lines, &p), &ev, (misread, truth));
+}
