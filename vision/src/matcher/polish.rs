@@ -260,7 +260,8 @@ fn hiders_in_view<'a>(
 /// the report does in each image or more and for more in the two together, and for as much of
 /// its whole wireframe in the left image. Only turns that start near the report along edgels
 /// in both images ([`TURN_START_SLACK`]) are refitted. A turn clearly sharper in both images
-/// ([`CLEAR_GAIN`]) needs less of the 3D support and the whole wireframe. Returns which
+/// ([`CLEAR_GAIN`]) needs less of the 3D support and the whole wireframe; one far sharper
+/// ([`FAR_GAIN`]) less of the 3D support still. Returns which
 /// reports were turned.
 ///
 /// Why: a part read turned over (a wedge resting on its slope where it rests on its bottom, an
@@ -411,9 +412,12 @@ fn best_turn(
                     && then_sum >= now_sum - SUNK_TIE_SLACK
             };
             let clearly_sharper = || {
-                then_support >= CLEAR_KEEP_SUPPORT * now_support
+                (then_support >= CLEAR_KEEP_SUPPORT * now_support
                     && then.iter().zip(&now).all(|(t, n)| t - n >= CLEAR_GAIN)
-                    && image_support(model, pose, ev) >= now_whole - CLEAR_WHOLE_SLACK
+                    && image_support(model, pose, ev) >= now_whole - CLEAR_WHOLE_SLACK)
+                    || (then_support >= FAR_KEEP_SUPPORT * now_support
+                        && then.iter().zip(&now).all(|(t, n)| t - n >= FAR_GAIN)
+                        && image_support(model, pose, ev) >= now_whole)
             };
             sharper
                 || clearly_sharper()
@@ -470,10 +474,26 @@ const APART_START_SUPPORT: f64 = 0.7;
 /// in view 0.68 / 0.66 against 0.86 / 0.83). Right reports' turns gained 0.074 at most in both
 /// images (docs/TUNING.md, session 66).
 const CLEAR_GAIN: f64 = 0.08;
+
 /// See [`CLEAR_GAIN`].
 const CLEAR_KEEP_SUPPORT: f64 = 0.7;
 /// See [`CLEAR_GAIN`].
 const CLEAR_WHOLE_SLACK: f64 = 0.1;
+
+/// A turn that runs along edgels for this share more of its wireframe in view than the report
+/// does in each image, and for as much of its whole wireframe in the left image, replaces it
+/// though it keeps only [`FAR_KEEP_SUPPORT`] of its 3D support: a report read on other parts'
+/// 3D lines loses them when turned onto its own. An L-bracket read with its arm on the bar's
+/// other side, along a neighbour's edge (realistic `dense.toml` tuning seed 6283), turned back
+/// onto its bar's other side ([`super::turns::in_stereo`]) ran along edgels for 0.96 / 0.96 of
+/// its wireframe in view against 0.51 / 0.44, and 0.71 of its whole wireframe against 0.50,
+/// on 0.52 of the report's 3D support. `marvin eval locate` through tuning seed 1's
+/// calibrations: it put that report right and changed no other on realistic `dense.toml`
+/// 5001-5400 and 6001-6300, `widgets.toml` 4401-4700 and ideal `dense.toml` 5001-5200; 0.2
+/// gave the same; 0.1 turned a right bracket wrong (5241).
+const FAR_GAIN: f64 = 0.3;
+/// See [`FAR_GAIN`].
+const FAR_KEEP_SUPPORT: f64 = 0.5;
 
 /// A turn replaces a report in [`turn_in_stereo`] only if it keeps this share of the report's
 /// 3D support: all of it, bar rounding. Every turn taken on the tuning seeds that put a report

@@ -375,31 +375,82 @@ fn a_turn_that_would_sink_into_the_table_is_not_taken() {
     assert_eq!(turned(&on_table), (false, truth), "with the table it stands");
 }
 
+/// An L-bracket lying flat before the verged pair: the bracket, its pose, the turn of its bar
+/// on itself (its arm to the bar's other side), and the cameras.
+struct BracketOnTable {
+    bracket: MatcherModel,
+    truth: Isometry3<f64>,
+    bar_flip: Isometry3<f64>,
+    left: mesh::PinholeCamera,
+    right: mesh::PinholeCamera,
+    right_from_cam: Isometry3<f64>,
+}
+
+impl BracketOnTable {
+    fn new() -> BracketOnTable {
+        let (bracket, (left, right)) = (model("l_bracket"), pair());
+        let truth = left.cam_from_world()
+            * Isometry3::from_parts(
+                Translation3::new(0.01, 0.02, 0.0125),
+                UnitQuaternion::from_euler_angles(0.0, 0.0, 0.7),
+            );
+        let right_from_cam = right.cam_from_world() * left.world_from_cam;
+        let bar_flip = Isometry3::from_parts(
+            Translation3::new(0.0, -0.035, 0.0),
+            UnitQuaternion::from_axis_angle(&Vector3::x_axis(), PI),
+        );
+        BracketOnTable { bracket, truth, bar_flip, left, right, right_from_cam }
+    }
+
+    /// `lines` and both images of the bracket as it lies: turned back to it from `misread`?
+    fn assert_turned_back(&self, (lines, p): (&[Seg], &MatchParams), misread: Isometry3<f64>) {
+        let (left_edges, _) = model_edges(&self.bracket, &self.truth, &self.left);
+        let (right_edges, _) = model_edges(&self.bracket, &(self.right_from_cam * self.truth), &self.right);
+        let right = RightImage {
+            ev: ImageEvidence::new(&self.right, &right_edges, Vec::new()),
+            right_from_cam: self.right_from_cam,
+        };
+        let ev = ImageEvidence::new(&self.left, &left_edges, Vec::new()).with_right(right);
+        assert_turned_back(&self.bracket, (lines, p), &ev, (misread, self.truth));
+    }
+}
+
 /// An L-bracket lying flat, read with its arm on its bar's other side (its bar turned half
 /// round on itself, on the bar's 3D lines alone: the arm gave none): turned back where both
 /// images show the arm where it is. The turn is one only the turn in stereo tries.
 #[test]
 fn an_l_bracket_read_with_its_arm_on_the_wrong_side_is_turned_back_by_both_images() {
-    let (bracket, (left, right)) = (model("l_bracket"), pair());
-    let truth = left.cam_from_world()
-        * Isometry3::from_parts(
-            Translation3::new(0.01, 0.02, 0.0125),
-            UnitQuaternion::from_euler_angles(0.0, 0.0, 0.7),
-        );
-    let right_from_cam = right.cam_from_world() * left.world_from_cam;
-    let bar_flip = Translation3::new(0.0, -0.035, 0.0) * UnitQuaternion::from_axis_angle(&Vector3::x_axis(), PI);
-    let bar_flip = Isometry3::from_parts(bar_flip.translation, bar_flip.rotation);
+    let f = BracketOnTable::new();
     let same = |t: &Isometry3<f64>| {
-        let e = t.inverse() * bar_flip;
+        let e = t.inverse() * f.bar_flip;
         e.translation.vector.norm() < 1e-9 && e.rotation.angle() < 1e-9
     };
-    assert!(!crate::matcher::turns::of(&bracket).iter().any(same), "not among the looks' turns");
-    let misread = truth * bar_flip;
-    let p = MatchParams::default();
-    let lines = lines_along(&bracket, &misread, true_lines(&bracket, &truth), &p);
-    let (left_edges, _) = model_edges(&bracket, &truth, &left);
-    let (right_edges, _) = model_edges(&bracket, &(right_from_cam * truth), &right);
-    let ev = ImageEvidence::new(&left, &left_edges, Vec::new())
-        .with_right(RightImage { ev: ImageEvidence::new(&right, &right_edges, Vec::new()), right_from_cam });
-    assert_turned_back(&bracket, (&lines, &p), &ev, (misread, truth));
+    assert!(!crate::matcher::turns::of(&f.bracket).iter().any(same), "not among the looks' turns");
+    let (misread, p) = (f.truth * f.bar_flip, MatchParams::default());
+    let lines = lines_along(&f.bracket, &misread, true_lines(&f.bracket, &f.truth), &p);
+    f.assert_turned_back((&lines, &p), misread);
+}
+
+/// The bracket read with its arm on the wrong side along a neighbour's edges there (3D lines
+/// under the misread arm's edges that lie off the bracket), so that turned back it keeps
+/// between [`FAR_KEEP_SUPPORT`] and [`CLEAR_KEEP_SUPPORT`] of the report's 3D support: turned
+/// all the same, both images showing it far more sharply ([`FAR_GAIN`]).
+#[test]
+fn a_turn_far_sharper_in_both_images_is_taken_off_a_neighbours_lines() {
+    let f = BracketOnTable::new();
+    let (misread, p) = (f.truth * f.bar_flip, MatchParams::default());
+    let support = |pose: &Isometry3<f64>, lines: &[Seg]| support_at(&f.bracket, pose, lines, &p).0;
+    let mut lines = lines_along(&f.bracket, &misread, true_lines(&f.bracket, &f.truth), &p);
+    let off_the_bracket = true_lines(&f.bracket, &misread)
+        .into_iter()
+        .filter(|l| support(&f.truth, std::slice::from_ref(l)) < 0.1 * (l.b - l.a).norm());
+    for l in off_the_bracket {
+        lines.push(l);
+        if support(&f.truth, &lines) < CLEAR_KEEP_SUPPORT * support(&misread, &lines) {
+            break;
+        }
+    }
+    let kept = support(&f.truth, &lines) / support(&misread, &lines);
+    assert!((FAR_KEEP_SUPPORT..CLEAR_KEEP_SUPPORT).contains(&kept), "turned back, it keeps {kept:.2} of the support");
+    f.assert_turned_back((&lines, &p), misread);
 }
