@@ -14,8 +14,8 @@
 //! bracket) are the superset's ([`super::superset`]).
 
 use super::model::{Located, MatchParams, MatcherModel, Seg};
-use super::occlusion::Solid;
 use super::ranking::Candidate;
+use super::ties::Reading;
 use super::verify::ImageEvidence;
 use nalgebra::Isometry3;
 
@@ -49,23 +49,18 @@ fn covering_reading(
     kept: &[Located],
     i: usize,
 ) -> Option<Located> {
-    let judge = |own: &MatcherModel, (m, c): (&MatcherModel, &Candidate), others: &[Placed]| {
-        let r = &kept[i];
-        let solids: Vec<Solid> = others.iter().map(|(m, pose)| Solid::new(m, pose)).collect();
-        let hiding: Vec<&Solid> = solids.iter().collect();
-        let explained = super::verify::Explained::of(others.iter().copied(), ev.cam);
-        let gain = super::ties::where_apart(((own, &r.cam_from_model), (m, &c.pose)), ev, &hiding, &explained);
+    let r = &kept[i];
+    let judge = |own: &MatcherModel, (m, c): (&MatcherModel, &Candidate), others: &[Reading]| {
+        let readings = ((own, &r.cam_from_model), (m, &c.pose));
+        let gain = super::ties::where_apart_seen_from(readings, others, (&Isometry3::identity(), ev));
         gain.filter(|g| c.score >= super::ties::TIE * r.support && *g > super::ties::TIE_GAIN)
     };
     best_covering(models, (scene, p), ev, kept, i, &judge)
 }
 
-/// A model at a pose (`cam` frame).
-type Placed<'m> = (&'m MatcherModel, &'m Isometry3<f64>);
-
 /// How much better the image shows a covering model's reading (refitted) than the report's
 /// model, given the other reports; `None` where the reading does not stand.
-type Judge<'a> = &'a dyn Fn(&MatcherModel, (&MatcherModel, &Candidate), &[Placed]) -> Option<f64>;
+type Judge<'a> = &'a dyn Fn(&MatcherModel, (&MatcherModel, &Candidate), &[Reading]) -> Option<f64>;
 
 /// The reading of another model that covers report `i` of `kept` (where it has less than
 /// [`MAX_SUPPORT`] of its model along 3D lines and no larger model holds it), refitted from
@@ -158,18 +153,13 @@ pub(crate) fn settle_covered_once_polished(
     for i in 0..kept.len() {
         let support = kept[i].support;
         let report = kept[i].cam_from_model;
-        let judge = |own: &MatcherModel, (m, c): (&MatcherModel, &Candidate), others: &[Placed]| {
+        let judge = |own: &MatcherModel, (m, c): (&MatcherModel, &Candidate), others: &[Reading]| {
             let views = [(Isometry3::identity(), ev), (right.right_from_cam, &right.ev)];
+            let readings = ((own, &report), (m, &c.pose));
             let gains: Option<Vec<f64>> = views
                 .iter()
                 .map(|(cam_from_left, v_ev)| {
-                    let moved: Vec<Isometry3<f64>> = others.iter().map(|(_, pose)| cam_from_left * *pose).collect();
-                    let placed = || others.iter().zip(&moved).map(|((o, _), pose)| (*o, pose));
-                    let solids: Vec<Solid> = placed().map(|(o, pose)| Solid::new(o, pose)).collect();
-                    let hiding: Vec<&Solid> = solids.iter().collect();
-                    let explained = super::verify::Explained::of(placed(), v_ev.cam);
-                    let (a, b) = (cam_from_left * report, cam_from_left * c.pose);
-                    super::ties::where_apart(((own, &a), (m, &b)), v_ev, &hiding, &explained)
+                    super::ties::where_apart_seen_from(readings, others, (cam_from_left, v_ev))
                 })
                 .collect();
             let least = gains?.into_iter().fold(f64::INFINITY, f64::min);

@@ -379,14 +379,8 @@ fn shown_in_the_right_image(
     let model_of = |name: &str| models.iter().find(|m| m.name == name);
     let (Some(own), Some(m)) = (model_of(&kept[i].model), model_of(&larger.model)) else { return false };
     let others = others_than(models, kept, i);
-    let in_right: Vec<Isometry3<f64>> = others.iter().map(|(_, pose)| right.right_from_cam * *pose).collect();
-    let solids: Vec<Solid> = others.iter().zip(&in_right).map(|((o, _), pose)| Solid::new(o, pose)).collect();
-    let hiding: Vec<&Solid> = solids.iter().collect();
-    let explained =
-        super::verify::Explained::of(others.iter().zip(&in_right).map(|((o, _), pose)| (*o, pose)), right.ev.cam);
-    let (report, larger) =
-        (right.right_from_cam * kept[i].cam_from_model, right.right_from_cam * larger.cam_from_model);
-    super::ties::where_apart(((own, &report), (m, &larger)), &right.ev, &hiding, &explained)
+    let readings = ((own, &kept[i].cam_from_model), (m, &larger.cam_from_model));
+    super::ties::where_apart_seen_from(readings, &others, (&right.right_from_cam, &right.ev))
         .is_some_and(|gain| gain > super::ties::TIE_GAIN)
 }
 

@@ -65,6 +65,23 @@ pub(crate) fn where_apart(
     (theirs.px >= MIN_PX).then_some(theirs.share - own_share)
 }
 
+/// [`where_apart`] in the view of a camera whose frame is `cam_from_left` from the left
+/// camera's, seeing `ev`: the readings and the `others` (the other reports, whose solids hide
+/// and whose edges explain what they do there) given in the left camera's frame.
+pub(crate) fn where_apart_seen_from(
+    (best, rival): (Reading, Reading),
+    others: &[Reading],
+    (cam_from_left, ev): (&Isometry3<f64>, &ImageEvidence),
+) -> Option<f64> {
+    let moved: Vec<Isometry3<f64>> = others.iter().map(|(_, pose)| cam_from_left * *pose).collect();
+    let placed = || others.iter().zip(&moved).map(|((m, _), pose)| (*m, pose));
+    let solids: Vec<Solid> = placed().map(|(m, pose)| Solid::new(m, pose)).collect();
+    let hiding: Vec<&Solid> = solids.iter().collect();
+    let explained = Explained::of(placed(), ev.cam);
+    let (a, b) = (cam_from_left * best.1, cam_from_left * rival.1);
+    where_apart(((best.0, &a), (rival.0, &b)), ev, &hiding, &explained)
+}
+
 /// Whether the `turned` reading shows its own edges, where it and the `report` lie apart in
 /// the image, along edgels for [`TIE_GAIN`] more of their
 /// length than the report shows of its own, in each image where it has enough of them in view
