@@ -474,7 +474,6 @@ const APART_START_SUPPORT: f64 = 0.7;
 /// in view 0.68 / 0.66 against 0.86 / 0.83). Right reports' turns gained 0.074 at most in both
 /// images (docs/TUNING.md, session 66).
 const CLEAR_GAIN: f64 = 0.08;
-
 /// See [`CLEAR_GAIN`].
 const CLEAR_KEEP_SUPPORT: f64 = 0.7;
 /// See [`CLEAR_GAIN`].

@@ -16,8 +16,8 @@ use std::f64::consts::PI;
 
 /// A slab's turn ([`in_stereo`]) is tried if it carries this share of the wireframe onto
 /// itself: an L-bracket's bar on itself carries 0.54, a T-piece's top 0.57, a widget turned
-/// about the axis midway between its bottom and its lower top face 0.41. `marvin eval locate` through tuning seed 1's calibrations (located, false
-/// reports), after the stereo judgements of the superset and the covering: realistic
+/// about the axis midway between its bottom and its lower top face 0.41. `marvin eval locate`
+/// through tuning seed 1's calibrations (located, false reports), after the stereo judgements of the superset and the covering: realistic
 /// `dense.toml` 5001-5400 0.9255 / 45 -> 0.9262 / 42 at 0.5 -> 0.9266 / 40 at 0.4 -> 0.9267 /
 /// 39 at 0.3 (twice the turns of 0.4); 6001-6300 0.9175 / 47 -> 0.9179 / 44 at 0.5 and 0.4;
 /// ideal `dense.toml` 5001-5200 0.9504 / 15 -> 0.9507 / 14 at 0.4; realistic `widgets.toml`
@@ -25,6 +25,7 @@ use std::f64::consts::PI;
 /// matcher's median on `dense.toml` rose 7-9% with these and the stereo judgements together
 /// (alternated runs of 60 scenes), and not measurably on the bench's `widgets.toml` scene.
 const MIN_SLAB_OVERLAP: f64 = 0.4;
+
 /// A turn from one resting face to another is tried only if it carries this share of the
 /// wireframe's length onto the wireframe (within [`OVERLAP_M`] and [`OVERLAP_ANGLE_DEG`]).
 /// Of the library's parts' such turns, the wedge's bottom to slope carries 0.67, an
@@ -53,14 +54,18 @@ pub(crate) fn of(model: &MatcherModel) -> &[Isometry3<f64>] {
         let mut out: Vec<Isometry3<f64>> = half_turns(model).to_vec();
         let (on_faces, face_to_face) = face_turns(model);
         let face_to_face = face_to_face.into_iter().filter(|t| self_overlap(model, t) >= MIN_OVERLAP);
-        for turn in face_to_face.chain(on_faces) {
-            let known = out.iter().any(|t| same_motion(t, &turn));
-            if !known && !is_symmetry(model, &turn) {
-                out.push(turn);
-            }
-        }
+        add_new(model, &mut out, face_to_face.chain(on_faces));
         out
     })
+}
+
+/// `turns` added to `out`, each only if neither a symmetry of `model` nor a turn already listed.
+fn add_new(model: &MatcherModel, out: &mut Vec<Isometry3<f64>>, turns: impl Iterator<Item = Isometry3<f64>>) {
+    for turn in turns {
+        if !out.iter().any(|t| same_motion(t, &turn)) && !is_symmetry(model, &turn) {
+            out.push(turn);
+        }
+    }
 }
 
 /// The model's half turns about its bounding box's three axes through the box's centre.
@@ -128,11 +133,8 @@ fn face_turns(model: &MatcherModel) -> (Vec<Isometry3<f64>>, Vec<Isometry3<f64>>
 pub(crate) fn in_stereo(model: &MatcherModel) -> &[Isometry3<f64>] {
     model.stereo_turns.get_or_init(|| {
         let mut out: Vec<Isometry3<f64>> = of(model).to_vec();
-        for turn in slab_turns(model).into_iter().filter(|t| self_overlap(model, t) >= MIN_SLAB_OVERLAP) {
-            if !out.iter().any(|t| same_motion(t, &turn)) && !is_symmetry(model, &turn) {
-                out.push(turn);
-            }
-        }
+        let slabs = slab_turns(model).into_iter().filter(|t| self_overlap(model, t) >= MIN_SLAB_OVERLAP);
+        add_new(model, &mut out, slabs);
         out
     })
 }
@@ -176,7 +178,7 @@ fn slab_turns(model: &MatcherModel) -> Vec<Isometry3<f64>> {
 }
 
 /// Whether two motions are the same to within a micrometre and a microradian.
-fn same_motion(a: &Isometry3<f64>, b: &Isometry3<f64>) -> bool {
+pub(crate) fn same_motion(a: &Isometry3<f64>, b: &Isometry3<f64>) -> bool {
     (a.translation.vector - b.translation.vector).norm() < 1e-6 && a.rotation.angle_to(&b.rotation) < 1e-6
 }
 

@@ -421,10 +421,7 @@ impl BracketOnTable {
 #[test]
 fn an_l_bracket_read_with_its_arm_on_the_wrong_side_is_turned_back_by_both_images() {
     let f = BracketOnTable::new();
-    let same = |t: &Isometry3<f64>| {
-        let e = t.inverse() * f.bar_flip;
-        e.translation.vector.norm() < 1e-9 && e.rotation.angle() < 1e-9
-    };
+    let same = |t: &Isometry3<f64>| crate::matcher::turns::same_motion(t, &f.bar_flip);
     assert!(!crate::matcher::turns::of(&f.bracket).iter().any(same), "not among the looks' turns");
     let (misread, p) = (f.truth * f.bar_flip, MatchParams::default());
     let lines = lines_along(&f.bracket, &misread, true_lines(&f.bracket, &f.truth), &p);
