@@ -202,6 +202,12 @@ pub enum EvalTarget {
         /// and its error against the true top at the workspace's centre, judged afterwards).
         #[arg(long, conflicts_with = "hand_eye")]
         table_from_images: bool,
+        /// Also judge which reports are in doubt, a turn of the part fitting them as well in
+        /// both images (`vision::matcher::polish::doubt`, as `marvin run` judges the part it
+        /// would pick); adds `in_doubt` (right and false reports in doubt). Costs a refit of
+        /// every turn of every report.
+        #[arg(long)]
+        doubt: bool,
         #[command(flatten)]
         batch: BatchArgs,
     },
@@ -272,9 +278,20 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
                 super::eval_vision::Sources { cameras, hand_eye, deblur: !no_deblur, slices: slices as usize };
             super::eval_vision::eval(&batch.batch(world, scenes, seed, json)?, &sources)
         }
-        EvalTarget::Locate { world, scenes, seed, no_deblur, json, cameras, hand_eye, table_from_images, batch } => {
-            let sources =
-                super::eval_locate::Sources { cameras, hand_eye, table_from_images, canny: canny_params(!no_deblur) };
+        EvalTarget::Locate {
+            world,
+            scenes,
+            seed,
+            no_deblur,
+            json,
+            cameras,
+            hand_eye,
+            table_from_images,
+            doubt,
+            batch,
+        } => {
+            let canny = canny_params(!no_deblur);
+            let sources = super::eval_locate::Sources { cameras, hand_eye, table_from_images, canny, doubt };
             super::eval_locate::eval(&batch.batch(world, scenes, seed, json)?, &sources)
         }
         EvalTarget::Pick { world, trials, seed, json, batch } => {

@@ -20,6 +20,8 @@ pub struct Sources {
     /// Each scene's table from its own 3D lines (`front_end::table_top`), not the hand-eye's.
     pub table_from_images: bool,
     pub canny: vision::CannyParams,
+    /// Judge which reports are in doubt ([`LocateScene::in_doubt`]).
+    pub doubt: bool,
 }
 
 /// What `eval locate` keeps of one scene.
@@ -34,6 +36,10 @@ pub struct LocateScene {
     /// between their normals (deg); `None` where no top was found.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub table_found: Option<TableFound>,
+    /// With `--doubt`: how many right reports, and how many false ones, a turn of the part
+    /// fits as well (`vision::matcher::polish::doubt::TurnedAlike::fits_as_well`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub in_doubt: Option<[usize; 2]>,
 }
 
 /// See [`LocateScene::table_found`].
@@ -83,14 +89,32 @@ pub fn eval(b: &Batch, sources: &Sources) -> anyhow::Result<()> {
         let mut stats = locate_stats(&located, &p.scene, &scn.library, &p.cams, &p.left.depth, &symmetry);
         measure_at_truth(&mut stats.missed, &p.scene, &calib, (&models, &lines, &params), &evidence);
         measure_as_reported(&mut stats.false_reports, &located, (&models, &lines, &params), &evidence);
+        let in_doubt = sources.doubt.then(|| in_doubt(&stats, &located, (&models, &lines, &params), &evidence));
         let line = format!(
             "located {}/{} visible objects, {} false of {} reports",
             stats.located, stats.eligible, stats.false_positives, stats.reports
         );
-        Ok((serde_json::to_value(LocateScene { stats, unsettled: !p.settled, match_ms, table_found })?, line))
+        Ok((serde_json::to_value(LocateScene { stats, unsettled: !p.settled, match_ms, table_found, in_doubt })?, line))
     };
     let records = runner.run(&shared, &scene)?;
     print_report(summarise(&records)?, b.shard, b.json)
+}
+
+/// How many of the right reports, and of the false ones, are in doubt: a turn of the part fits
+/// them as well in both images.
+fn in_doubt(
+    stats: &LocateStats,
+    located: &[vision::matcher::Located],
+    (models, lines, params): (&[vision::matcher::MatcherModel], &[vision::matcher::Seg], &vision::matcher::MatchParams),
+    evidence: &vision::matcher::verify::ImageEvidence,
+) -> [usize; 2] {
+    let all = vec![true; located.len()];
+    let alike = vision::matcher::polish::doubt::turned_alike(models, (lines, params), evidence, located, &all);
+    let doubted = |i: usize| alike[i].is_some();
+    let false_ones: Vec<usize> = stats.false_reports.iter().map(|f| f.index).collect();
+    let (wrong, right): (Vec<usize>, Vec<usize>) =
+        (0..located.len()).filter(|&i| doubted(i)).partition(|i| false_ones.contains(i));
+    [right.len(), wrong.len()]
 }
 
 /// Each missed object's true pose (in the frame of the camera vision was given) measured as
@@ -145,6 +169,7 @@ pub fn summarise(records: &[Record]) -> anyhow::Result<Value> {
     let mut total = LocateStats::default();
     let (mut match_ms, mut unsettled, mut false_reports, mut missed) = (Vec::new(), 0, Vec::new(), Vec::new());
     let mut tables: Vec<Option<[f64; 2]>> = Vec::new();
+    let mut doubted: Option<[usize; 2]> = None;
     for r in records {
         let scene: LocateScene = serde_json::from_value(r.scene.clone())
             .with_context(|| format!("seed {}: not an `eval locate` scene", r.seed))?;
@@ -154,6 +179,10 @@ pub fn summarise(records: &[Record]) -> anyhow::Result<Value> {
         unsettled += usize::from(scene.unsettled);
         total.add(&scene.stats);
         tables.extend(scene.table_found.map(|t| t.error));
+        if let Some([right, wrong]) = scene.in_doubt {
+            let d = doubted.get_or_insert([0, 0]);
+            (d[0], d[1]) = (d[0] + right, d[1] + wrong);
+        }
     }
     let located_by_model: BTreeMap<String, f64> =
         total.by_model.iter().map(|(m, [e, l])| (m.clone(), *l as f64 / (*e).max(1) as f64)).collect();
@@ -175,6 +204,9 @@ pub fn summarise(records: &[Record]) -> anyhow::Result<Value> {
         "missed": missed,
         "version": first.version,
     });
+    if let Some([right, wrong]) = doubted {
+        report["in_doubt"] = json!({ "right_reports": right, "false_reports": wrong });
+    }
     if !tables.is_empty() {
         let found: Vec<[f64; 2]> = tables.iter().flatten().copied().collect();
         let heights: Vec<f64> = found.iter().map(|e| e[0].abs()).collect();

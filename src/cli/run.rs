@@ -33,7 +33,10 @@ pub struct RunArgs {
 fn cycle_json(c: &Cycle) -> Value {
     let reply = c.reply();
     json!({
-        "located": c.located.iter().map(|l| json!({ "model": l.model, "support": l.support_fraction, "image_support": l.image_support })).collect::<Vec<_>>(),
+        "located": c.located.iter().enumerate().map(|(i, l)| json!({
+            "model": l.model, "support": l.support_fraction, "image_support": l.image_support,
+            "in_doubt": c.in_doubt.get(i).copied().unwrap_or(false),
+        })).collect::<Vec<_>>(),
         "chosen": c.chosen_model(),
         "outcome": outcome_name(c),
         "detail": reply.and_then(|r| r.detail.clone()),
@@ -82,8 +85,10 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
     let mut line = |c: &Cycle| {
         k += 1;
         let chosen = c.chosen_model().unwrap_or("-");
+        let doubted = c.in_doubt.iter().filter(|d| **d).count();
+        let doubted = if doubted > 0 { format!(" ({doubted} in doubt)") } else { String::new() };
         let line = format!(
-            "cycle {k}: {} located, {chosen} chosen: {} ({:.0} ms vision, {:.1} s)",
+            "cycle {k}: {} located{doubted}, {chosen} chosen: {} ({:.0} ms vision, {:.1} s)",
             c.located.len(),
             outcome_name(c),
             c.vision_ms(),

@@ -128,8 +128,29 @@ pub fn locate_parts(
     fe: &FrontEnd,
     cam_from_table: Option<&Isometry3<f64>>,
 ) -> Vec<Located> {
+    locate_parts_in_doubt(models, pair, fe, cam_from_table, |_| false).0
+}
+
+/// [`locate_parts`], and of the parts `asked` marks, which are in doubt: a turn of the part fits
+/// as well in both images and on the 3D lines ([`vision::matcher::polish::doubt`]), so that
+/// the cameras cannot tell which way round it lies.
+pub fn locate_parts_in_doubt(
+    models: &[MatcherModel],
+    pair: &Pair,
+    fe: &FrontEnd,
+    cam_from_table: Option<&Isometry3<f64>>,
+    asked: impl Fn(&Located) -> bool,
+) -> (Vec<Located>, Vec<bool>) {
     let evidence = vision::matcher::verify::ImageEvidence::of_pair(&pair.calib, fe);
-    vision::matcher::locate_all(models, &scene_lines(fe), &part_params(cam_from_table), Some(&evidence))
+    let (lines, params) = (scene_lines(fe), part_params(cam_from_table));
+    let located = vision::matcher::locate_all(models, &lines, &params, Some(&evidence));
+    let asked: Vec<bool> = located.iter().map(asked).collect();
+    if !asked.contains(&true) {
+        return (located, asked);
+    }
+    let alike = vision::matcher::polish::doubt::turned_alike(models, (&lines, &params), &evidence, &located, &asked);
+    let doubted = alike.iter().map(Option::is_some).collect();
+    (located, doubted)
 }
 
 /// The matcher's settings for the parts, with the table where the cell's layout puts it:

@@ -509,5 +509,7 @@ const TURN_KEEP_SUPPORT: f64 = 0.99;
 /// right image too changed no report on the tuning seeds and saved refits and polishes.)
 const TURN_START_SLACK: f64 = 0.1;
 
+pub mod doubt;
+
 #[cfg(test)]
 mod tests;

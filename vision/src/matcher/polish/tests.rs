@@ -1,6 +1,7 @@
 //! The stereo polish's tests: poses pulled onto both images, and turns taken in stereo.
 
 use super::*;
+use crate::front_end::canny::EdgeMap;
 use crate::matcher::fixtures::{model, verged_pair as pair};
 use crate::matcher::model::Table;
 use crate::matcher::verify::{RightImage, drawn::model_edges};
@@ -404,14 +405,31 @@ impl BracketOnTable {
 
     /// `lines` and both images of the bracket as it lies: turned back to it from `misread`?
     fn assert_turned_back(&self, (lines, p): (&[Seg], &MatchParams), misread: Isometry3<f64>) {
-        let (left_edges, _) = model_edges(&self.bracket, &self.truth, &self.left);
-        let (right_edges, _) = model_edges(&self.bracket, &(self.right_from_cam * self.truth), &self.right);
+        let (left_edges, right_edges) = self.drawn(&[self.truth]);
         let right = RightImage {
             ev: ImageEvidence::new(&self.right, &right_edges, Vec::new()),
             right_from_cam: self.right_from_cam,
         };
         let ev = ImageEvidence::new(&self.left, &left_edges, Vec::new()).with_right(right);
         assert_turned_back(&self.bracket, (lines, p), &ev, (misread, self.truth));
+    }
+
+    /// The left and right images' edgels of the bracket at each of `poses` (the left camera's
+    /// frame).
+    fn drawn(&self, poses: &[Isometry3<f64>]) -> (EdgeMap, EdgeMap) {
+        let draw = |cam: &mesh::PinholeCamera, cam_from_left: &Isometry3<f64>| {
+            let mut edges = EdgeMap::new(512, 512);
+            for pose in poses {
+                let (more, _) = model_edges(&self.bracket, &(cam_from_left * pose), cam);
+                for (e, &px) in more.edgels.iter().zip(&more.pixel) {
+                    if edges.at_pixel[px as usize] == crate::front_end::canny::NO_EDGEL {
+                        edges.push(px as usize, *e);
+                    }
+                }
+            }
+            edges
+        };
+        (draw(&self.left, &Isometry3::identity()), draw(&self.right, &self.right_from_cam))
     }
 }
 
@@ -450,4 +468,43 @@ fn a_turn_far_sharper_in_both_images_is_taken_off_a_neighbours_lines() {
     let kept = support(&f.truth, &lines) / support(&misread, &lines);
     assert!((FAR_KEEP_SUPPORT..CLEAR_KEEP_SUPPORT).contains(&kept), "turned back, it keeps {kept:.2} of the support");
     f.assert_turned_back((&lines, &p), misread);
+}
+
+/// A bracket read where it lies is in doubt only where both images show a turn of it as well:
+/// alone before the cameras, not; with a neighbour's edges and 3D lines where the bracket's arm
+/// on its bar's other side would lie, so, the turn being that one.
+#[test]
+fn a_reading_is_in_doubt_only_where_both_images_show_a_turn_of_it_as_well() {
+    let f = BracketOnTable::new();
+    let (p, flipped) = (MatchParams::default(), f.truth * f.bar_flip);
+    let alike = |lines: &[Seg], drawn: &[Isometry3<f64>], asked: bool| {
+        let (left_edges, right_edges) = f.drawn(drawn);
+        let right =
+            RightImage { ev: ImageEvidence::new(&f.right, &right_edges, Vec::new()), right_from_cam: f.right_from_cam };
+        let ev = ImageEvidence::new(&f.left, &left_edges, Vec::new()).with_right(right);
+        let located = [report(&f.bracket, f.truth)];
+        doubt::turned_alike(std::slice::from_ref(&f.bracket), (lines, &p), &ev, &located, &[asked]).remove(0)
+    };
+    let alone = alike(&true_lines(&f.bracket, &f.truth), &[f.truth], true);
+    assert!(alone.is_none(), "alone: {alone:?}");
+    let lines = [true_lines(&f.bracket, &f.truth), true_lines(&f.bracket, &flipped)].concat();
+    let both = alike(&lines, &[f.truth, flipped], true).expect("a turn that fits as well");
+    let (mm, deg) = off_by(&flipped, &both.cam_from_model);
+    assert!(mm < 0.5 && deg < 0.5, "{both:?}: {mm:.2} mm, {deg:.2} deg from the turn");
+    assert!(alike(&lines, &[f.truth, flipped], false).is_none(), "not asked");
+}
+
+/// A turn fits as well as the report where the two tie in both images, or where either image
+/// shows the turn more (the images disagree); not where it keeps too little of the 3D support.
+#[test]
+fn a_turn_fits_as_well_where_it_ties_or_either_image_shows_it_more() {
+    let fits = |report_shown: [f64; 2], turn_shown: [f64; 2], support_kept: f64| {
+        let t = doubt::TurnedAlike { cam_from_model: Isometry3::identity(), report_shown, turn_shown, support_kept };
+        t.fits_as_well()
+    };
+    assert!(fits([0.8, 0.8], [0.75, 0.78], 1.0), "ties");
+    assert!(fits([0.83, 1.0], [0.88, 0.83], 1.0), "the images disagree");
+    assert!(!fits([0.83, 1.0], [0.84, 0.83], 1.0), "the left image shows the turn more by too little");
+    assert!(!fits([0.8, 0.8], [0.6, 0.8], 1.0), "the left image shows the turn less");
+    assert!(!fits([0.8, 0.8], [0.9, 0.9], 0.7), "sharper, on too little of the 3D lines");
 }
