@@ -56,7 +56,8 @@
 //! - [`overlap`]: two reports filling the same space; the weaker is not there.
 //! - [`merge`]: all models in parallel, reports merged, the second, third and table looks.
 //! - [`polish`]: each report's pose pulled onto the edgels of both images at once, and turned
-//!   where both images show a turn of it more sharply.
+//!   where both images show a turn of it more sharply; [`polish::doubt`]: the reports a turn
+//!   of the part fits as well (a run picks them last).
 //!
 //! The matcher depends on the front end's output types only ([`crate::front_end`]), never the
 //! other way round; within it, [`model`] is what the others share and imports none of them.

@@ -11,6 +11,10 @@
 //! matches nothing across the images: each camera's outline is the model's own there.
 //! Samples that other reports' solids or the model's own bulk hide from a camera are left
 //! out, so that a hidden edge is not pulled onto whatever lies in front of it.
+//!
+//! Then the turns ([`turn_in_stereo`]): a report replaced by a turn of itself that both images
+//! show more sharply. Where a turn fits as well, the report stands and is in doubt
+//! ([`doubt`]).
 
 use super::image_fit::{View, refine_in_views_above};
 use super::model::{Located, MatchParams, MatcherModel, Seg};
