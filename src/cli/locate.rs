@@ -205,7 +205,7 @@ fn record(
     r.at(0, 0.0);
     r.frame(&(base_from_world * calib.left.world_from_cam));
     r.stereo([png(&p.left)?, png(&p.right)?], &pair, &p.front_end)?;
-    r.located(located, &scn.library)?;
+    r.located(located, &[], &scn.library)?;
     r.cell_layout(scn)?;
     r.text(&format!("seed {}: {} parts located", p.scene.seed, located.len()))?;
     r.finish()

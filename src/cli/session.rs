@@ -156,9 +156,9 @@ pub fn run_once(
                     r.capture(capture, pair, front_end)?;
                 }
             }
-            RunEvent::Located { located, .. } => {
+            RunEvent::Located { located, in_doubt, .. } => {
                 if let Some(r) = recording.as_deref_mut() {
-                    r.located(located, library)?;
+                    r.located(located, in_doubt, library)?;
                 }
             }
             RunEvent::Done(c) => {

@@ -255,8 +255,14 @@ mod with_rerun {
             Ok(())
         }
 
-        /// The parts located: wireframes labelled with their models, and grasp frames.
-        pub fn located(&mut self, located: &[Located], library: &mesh::Library) -> anyhow::Result<()> {
+        /// The parts located: wireframes labelled with their models (and, where `in_doubt` says so,
+        /// as in doubt: a turn of the part fits as well), and grasp frames.
+        pub fn located(
+            &mut self,
+            located: &[Located],
+            in_doubt: &[bool],
+            library: &mesh::Library,
+        ) -> anyhow::Result<()> {
             let Some(base_from_cam) = self.base_from_cam else { return Ok(()) };
             for k in located.len()..self.located_logged {
                 self.rec.log(format!("cell/located/{k}").as_str(), &rerun::Clear::recursive())?;
@@ -266,7 +272,8 @@ mod with_rerun {
                 let Some(model) = library.get(&l.model) else { continue };
                 let pose = base_from_cam * l.cam_from_model;
                 let strips: Vec<Vec<[f32; 3]>> = model.wireframe.iter().map(|s| points(&pose, [s.a, s.b])).collect();
-                let label = format!("{} ({:.0}% seen)", l.model, l.support_fraction * 100.0);
+                let doubt = if in_doubt.get(k).copied().unwrap_or(false) { ", in doubt" } else { "" };
+                let label = format!("{} ({:.0}% seen{doubt})", l.model, l.support_fraction * 100.0);
                 self.rec.log(
                     format!("cell/located/{k}").as_str(),
                     &rerun::LineStrips3D::new(strips).with_colors([0x00FFFFFF]).with_labels([label]),
@@ -497,7 +504,7 @@ mod without_rerun {
         pub fn stereo(&mut self, _pngs: [Vec<u8>; 2], _p: &Pair, _fe: &FrontEnd) -> anyhow::Result<()> {
             Ok(())
         }
-        pub fn located(&mut self, _l: &[Located], _lib: &mesh::Library) -> anyhow::Result<()> {
+        pub fn located(&mut self, _l: &[Located], _doubt: &[bool], _lib: &mesh::Library) -> anyhow::Result<()> {
             Ok(())
         }
         pub fn cycle(&self, _c: &Cycle, _line: &str) -> anyhow::Result<()> {

@@ -99,8 +99,8 @@ impl Cycle {
 pub enum RunEvent<'a> {
     /// A capture and what the front end made of it.
     Captured { cycle: usize, capture: &'a CaptureReply, pair: &'a Pair, front_end: &'a FrontEnd },
-    /// The parts located in it.
-    Located { cycle: usize, located: &'a [Located] },
+    /// The parts located in it, and which are in doubt ([`Cycle::in_doubt`]).
+    Located { cycle: usize, located: &'a [Located], in_doubt: &'a [bool] },
     /// A cycle done.
     Done(&'a Cycle),
 }
@@ -161,7 +161,7 @@ pub fn run(
         let (located, in_doubt) = locate_parts_in_doubt(&models, &pair, &fe, cam_from_table.as_ref(), surely_read);
         let match_ms = clock.elapsed().as_secs_f64() * 1e3;
         observe(RunEvent::Captured { cycle: k, capture: &capture, pair: &pair, front_end: &fe })?;
-        observe(RunEvent::Located { cycle: k, located: &located })?;
+        observe(RunEvent::Located { cycle: k, located: &located, in_doubt: &in_doubt })?;
         let mut timings_ms = fe.timings_ms.clone();
         timings_ms.extend([("match", match_ms), ("capture", capture_ms)]);
         let mut cycle = Cycle { located, in_doubt, sim_time_s: capture.sim_time_s, ..Cycle::timed(timings_ms) };
@@ -234,7 +234,8 @@ pub fn run(
 /// again with more of it in view. The wrong-model picks of `marvin eval run` on the tuning
 /// seeds (realistic `widgets.toml` 961-1360, tuning seed 1's files) were three: a wedge and a
 /// widget read turned about themselves, and a U-channel read on an L-bracket; the two turned
-/// were both in doubt when picked.
+/// were both in doubt when picked, and waiting, neither was picked wrong (docs/TUNING.md,
+/// "Readings in doubt wait in the run").
 fn pick_order(
     (located, in_doubt): (&[Located], &[bool]),
     cam_from_base: &Isometry3<f64>,
