@@ -132,10 +132,11 @@ fn pose(v: &serde_json::Value) -> nalgebra::Isometry3<f64> {
 /// scene (seed 340002, never used for a choice), and `marvin locate --left --right --cameras`
 /// sees only the two PNGs and the measured cameras. Its reports are then checked here against
 /// the scene's truth (scene.json, in the true left camera's frame): most of the parts found,
-/// each report within 5 mm of a part of its model.
+/// each report within 5 mm of a part of its model; `--truth` and `eval pairs` count them alike.
 #[test]
 fn a_pair_from_files_is_located_through_measured_cameras() {
-    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("realistic_pair_340002");
+    let scenes = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("realistic_pairs");
+    let dir = scenes.join("340002");
     let run = |args: &[&str]| {
         let out = Command::new(env!("CARGO_BIN_EXE_marvin"))
             .current_dir(env!("CARGO_MANIFEST_DIR"))
@@ -214,6 +215,29 @@ fn a_pair_from_files_is_located_through_measured_cameras() {
         let said = r["pos_err_mm"].as_f64().unwrap();
         assert!((said - nearest).abs() < 0.01, "{said} mm said, {nearest} mm measured: {r}");
     }
+    // It counts as `eval locate` counts: each object in view (by the depth map beside the
+    // file) located or not, every report here correct.
+    let t = &judged["truth"];
+    assert_eq!(t["in_view_from_depth"], true, "{t}");
+    let in_view = t["in_view"].as_u64().unwrap() as usize;
+    assert!(in_view <= truths.len() && in_view + 2 >= truths.len(), "{in_view} of {} objects in view", truths.len());
+    assert_eq!(t["located"].as_u64().unwrap() as usize + t["not_located"].as_array().unwrap().len(), in_view, "{t}");
+    assert_eq!(t["false_reports"], 0, "{t}");
+
+    // `eval pairs` reads every scene folder of a directory the same way and sums them.
+    let summed: serde_json::Value =
+        serde_json::from_slice(&run(&["eval", "pairs", scenes.to_str().unwrap(), "--cameras", CAMERAS, "--json"]))
+            .unwrap();
+    let read = &summed["scenes_read"][0];
+    assert_eq!(
+        (read["located"].clone(), read["in_view"].clone()),
+        (t["located"].clone(), t["in_view"].clone()),
+        "{summed}"
+    );
+    assert_eq!(read["seed"], 340002);
+    let fraction = t["located"].as_f64().unwrap() / in_view as f64;
+    assert!((summed["located_fraction"].as_f64().unwrap() - fraction).abs() < 1e-12, "{summed}");
+
     // A truth file that is not one is refused, naming it and the field at fault.
     let bad = dir.join("not_a_scene.json");
     std::fs::write(&bad, r#"{"objects": [{"model": "block"}], "calibration": {"left": {"world_from_cam": {"translation_m": [0, 0, 0], "rotation_xyzw": [0, 0, 0, 1]}}}}"#).unwrap();
@@ -225,4 +249,15 @@ fn a_pair_from_files_is_located_through_measured_cameras() {
         .unwrap();
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && e.contains("not_a_scene.json") && e.contains("objects[0].world_from_model"), "{e}");
+    // A scene folder without its right image is named.
+    let half = scenes.join("half");
+    std::fs::create_dir_all(&half).unwrap();
+    std::fs::copy(&left, half.join("left.png")).unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_marvin"))
+        .args(["eval", "pairs", scenes.to_str().unwrap(), "--cameras", CAMERAS])
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && e.contains("half") && e.contains("right.png"), "{e}");
+    std::fs::remove_dir_all(&half).unwrap();
 }

@@ -96,6 +96,21 @@ pub enum EvalTarget {
         #[arg(long)]
         hand_eye: Option<PathBuf>,
     },
+    /// The matcher on stereo pairs imaged anywhere, judged against their scenes' truth: DIR holds
+    /// one folder per scene with `left.png`, `right.png` and the `scene.json` (and
+    /// `depth_left.png`) of `marvin render`, the images perhaps replaced by another renderer's
+    /// or a real rig's. Each pair is read as `marvin locate --left --right --cameras` reads it
+    /// (the table from its own 3D lines) and counted as `eval locate` counts: the same JSON
+    /// keys, and `scenes_read` (per folder: its seed, located, in view, false reports, reports).
+    Pairs {
+        dir: PathBuf,
+        /// The cameras the pairs were taken with (`marvin calibrate cameras`' cameras.json, or
+        /// a scene.json).
+        #[arg(long)]
+        cameras: PathBuf,
+        #[arg(long)]
+        json: bool,
+    },
     /// Merge the per-scene records (`--out` files) of a batch's shards into the summary one
     /// process over the whole range prints; refuses records of different verbs, worlds, ranges
     /// or code versions, and says which seeds are missing or there twice.
@@ -302,6 +317,7 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
             super::eval_run_batch::eval(&batch.batch(world, scenes, seed, json)?, &shared)
         }
         EvalTarget::Merge { files, json } => merge(&files, json),
+        EvalTarget::Pairs { dir, cameras, json } => super::eval_pairs::run(&dir, &cameras, json),
         EvalTarget::Calibrate {
             what: Some(EvalCalibrateWhat::Cameras { world, trials, seed, poses, json, batch }),
             ..

@@ -86,7 +86,7 @@ pub fn eval(b: &Batch, sources: &Sources) -> anyhow::Result<()> {
             (vision::matcher::locate_all(&models, &lines, &params, Some(&evidence)), None)
         };
         let match_ms = clock.elapsed().as_secs_f64() * 1e3;
-        let mut stats = locate_stats(&located, &p.scene, &scn.library, &p.cams, &p.left.depth, &symmetry);
+        let mut stats = locate_stats(&located, &p.scene.objects, &scn.library, &p.cams, Some(&p.left.depth), &symmetry);
         measure_at_truth(&mut stats.missed, &p.scene, &calib, (&models, &lines, &params), &evidence);
         measure_as_reported(&mut stats.false_reports, &located, (&models, &lines, &params), &evidence);
         let in_doubt = sources.doubt.then(|| in_doubt(&stats, &located, (&models, &lines, &params), &evidence));

@@ -5,9 +5,9 @@
 
 use super::edges::load_grey_noting;
 use super::output::emit;
-use anyhow::{Context, bail};
+use super::pair_truth::SceneTruth;
+use anyhow::bail;
 use marvin::engine::perception::{Pair, front_end, locate_parts, part_models};
-use nalgebra::Isometry3;
 use std::path::{Path, PathBuf};
 
 /// The command's arguments in this form.
@@ -23,7 +23,7 @@ pub struct PairArgs {
 }
 
 /// The cameras of a calibration file: the project's cameras.json, or a scene.json.
-fn load_cameras(path: &Path) -> anyhow::Result<mesh::StereoCalibration> {
+pub fn load_cameras(path: &Path) -> anyhow::Result<mesh::StereoCalibration> {
     match camera_calib::file::CamerasFile::load(path) {
         Ok(file) => Ok(file.stereo_calibration()),
         Err(cameras_err) => mesh::StereoCalibration::load(path).map_err(|_| {
@@ -73,26 +73,8 @@ pub fn run(args: PairArgs) -> anyhow::Result<()> {
     // Read before the matcher runs, so that a bad file costs nothing; used only after it.
     let truth = args.truth.as_deref().map(SceneTruth::load).transpose()?;
     let pair = Pair { left, right, calib };
-    // No cell layout says where the table is in these cameras' frame: the matcher takes it from
-    // the scene's own 3D lines (the front end searched without it).
-    let mut fe = front_end(&pair, None);
-    let top = vision::front_end::table_top::find(&fe.lines3d);
-    let table_note = match &top {
-        Some(t) => format!(
-            "the table's top found on {} 3D lines ({:.0} mm of them), {:.1} mm below the left camera",
-            t.lines.len(),
-            t.length_m * 1e3,
-            t.table.camera_height_m * 1e3
-        ),
-        None => "no table's top found in the 3D lines: the matcher looks without one".to_string(),
-    };
-    notes.push(table_note);
-    // With the top known, the lines on it with soft edges (shadows, texture) are set apart.
-    if let Some(t) = &top {
-        fe.set_apart_soft_lines(&t.table);
-        notes.push(format!("{} 3D lines on the table's top set apart as shadows or texture", fe.set_apart.len()));
-    }
-    let located = locate_parts(&models, &pair, &fe, top.as_ref().map(|t| t.table.cam_from_table()).as_ref());
+    let PairReading { located, fe, top, notes: found } = read_pair(&pair, &models);
+    notes.extend(found);
     for note in &notes {
         eprintln!("note: {note}");
     }
@@ -108,7 +90,7 @@ pub fn run(args: PairArgs) -> anyhow::Result<()> {
             })
         })
         .collect();
-    let compared = truth.as_ref().map(|t| t.compare(&library, &located));
+    let compared = truth.as_ref().map(|t| Compared::of(t, &library, &located));
     if args.json {
         let table = top
             .as_ref()
@@ -139,129 +121,116 @@ pub fn run(args: PairArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// A scene's truth as `marvin render` writes it: each object's model and pose in the left
-/// camera's frame (the camera as built, where the measured cameras put the origin).
-pub struct SceneTruth {
-    path: PathBuf,
-    objects: Vec<(u64, String, Isometry3<f64>)>,
+/// What the front end and the matcher made of a pair, and notes on how.
+pub struct PairReading {
+    pub located: Vec<vision::matcher::Located>,
+    pub fe: vision::front_end::FrontEnd,
+    pub top: Option<vision::front_end::table_top::TableTop>,
+    pub notes: Vec<String>,
 }
 
-/// A report is correct within this distance (mm) and turn (deg) of an object of its model, as
-/// `marvin eval locate` has it.
-const CORRECT_MM: f64 = 10.0;
-const CORRECT_DEG: f64 = 5.0;
-
-impl SceneTruth {
-    pub fn load(path: &Path) -> anyhow::Result<SceneTruth> {
-        let text = std::fs::read_to_string(path).with_context(|| format!("{}", path.display()))?;
-        let scene: serde_json::Value =
-            serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))?;
-        let field = |v: &serde_json::Value, name: &str| -> anyhow::Result<mesh::pose::PoseRecord> {
-            serde_json::from_value(v.clone()).with_context(|| format!("{}: field `{name}`", path.display()))
-        };
-        // The camera as built; an ideal scene's is the calibration's.
-        let cam = match scene.pointer("/as_built/left/pinhole/world_from_cam") {
-            Some(v) => field(v, "as_built.left.pinhole.world_from_cam")?,
-            None => field(
-                scene.pointer("/calibration/left/world_from_cam").unwrap_or(&serde_json::Value::Null),
-                "calibration.left.world_from_cam",
-            )?,
-        };
-        let cam_from_world = Isometry3::from(&cam).inverse();
-        let Some(list) = scene["objects"].as_array() else {
-            bail!("{}: no `objects` list (a scene.json of `marvin render` has one)", path.display());
-        };
-        let mut objects = Vec::new();
-        for (k, o) in list.iter().enumerate() {
-            let model = o["model"].as_str().with_context(|| format!("{}: objects[{k}].model", path.display()))?;
-            let pose = field(&o["world_from_model"], &format!("objects[{k}].world_from_model"))?;
-            objects.push((
-                o["id"].as_u64().unwrap_or(k as u64),
-                model.to_string(),
-                cam_from_world * Isometry3::from(&pose),
-            ));
-        }
-        Ok(SceneTruth { path: path.to_path_buf(), objects })
+/// The front end and the matcher on a pair from any cameras. No cell layout says where the
+/// table is in these cameras' frame: the matcher takes it from the scene's own 3D lines (the
+/// front end searched without it), and the lines on it with soft edges (shadows, texture) are
+/// set apart.
+pub fn read_pair(pair: &Pair, models: &[vision::matcher::MatcherModel]) -> PairReading {
+    let mut fe = front_end(pair, None);
+    let top = vision::front_end::table_top::find(&fe.lines3d);
+    let mut notes = vec![match &top {
+        Some(t) => format!(
+            "the table's top found on {} 3D lines ({:.0} mm of them), {:.1} mm below the left camera",
+            t.lines.len(),
+            t.length_m * 1e3,
+            t.table.camera_height_m * 1e3
+        ),
+        None => "no table's top found in the 3D lines: the matcher looks without one".to_string(),
+    }];
+    if let Some(t) = &top {
+        fe.set_apart_soft_lines(&t.table);
+        notes.push(format!("{} 3D lines on the table's top set apart as shadows or texture", fe.set_apart.len()));
     }
-
-    /// Each report against the nearest object of its model.
-    pub fn compare(&self, library: &mesh::Library, located: &[vision::matcher::Located]) -> Compared {
-        let reports = located
-            .iter()
-            .map(|l| {
-                let symmetries = library.get(&l.model).map(marvin::eval::symmetries).unwrap_or_default();
-                self.objects
-                    .iter()
-                    .filter(|(_, model, _)| *model == l.model)
-                    .map(|(id, _, truth)| {
-                        let (m, rad) = marvin::eval::pose_error(&l.cam_from_model, truth, &symmetries);
-                        (*id, m * 1e3, rad.to_degrees())
-                    })
-                    .min_by(|a, b| a.1.total_cmp(&b.1))
-            })
-            .collect();
-        Compared {
-            file: self.path.display().to_string(),
-            objects: self.objects.iter().map(|(id, m, _)| (*id, m.clone())).collect(),
-            reports,
-        }
-    }
+    let located = locate_parts(models, pair, &fe, top.as_ref().map(|t| t.table.cam_from_table()).as_ref());
+    PairReading { located, fe, top, notes }
 }
 
-/// Reports against a truth file: per report the nearest object of its model (id, mm, deg).
-pub struct Compared {
+/// Reports against a truth file: counted as `eval locate` counts them, and each report's
+/// nearest object of its model (id, mm, deg).
+struct Compared {
     file: String,
-    objects: Vec<(u64, String)>,
-    reports: Vec<Option<(u64, f64, f64)>>,
+    stats: marvin::eval::LocateStats,
+    nearest: Vec<Option<(u32, f64, f64)>>,
+    /// The ids of the objects in view not located.
+    missed: Vec<(u32, String)>,
+    in_view_from_depth: bool,
 }
 
 impl Compared {
-    fn correct(r: &Option<(u64, f64, f64)>) -> bool {
-        r.is_some_and(|(_, mm, deg)| mm <= CORRECT_MM && deg <= CORRECT_DEG)
+    fn of(truth: &SceneTruth, library: &mesh::Library, located: &[vision::matcher::Located]) -> Compared {
+        let stats = truth.judge(library, located);
+        let missed = stats.missed.iter().map(|m| (truth.id(m.id), m.model.clone())).collect();
+        Compared {
+            file: truth.path.display().to_string(),
+            nearest: truth.nearest(library, located),
+            missed,
+            in_view_from_depth: truth.has_depth(),
+            stats,
+        }
     }
 
-    /// The objects no correct report is of (some may be hidden from the cameras).
-    fn not_located(&self) -> Vec<&(u64, String)> {
-        self.objects
-            .iter()
-            .filter(|(id, _)| !self.reports.iter().any(|r| Self::correct(r) && r.is_some_and(|(o, _, _)| o == *id)))
-            .collect()
+    fn correct(&self, k: usize) -> bool {
+        !self.stats.false_reports.iter().any(|f| f.index == k)
     }
 
     fn line(&self, k: usize) -> String {
-        match &self.reports[k] {
-            Some((id, mm, deg)) => {
-                let verdict = if Self::correct(&self.reports[k]) { "correct" } else { "FALSE" };
-                format!("; object {id}: {mm:.1} mm, {deg:.1} deg off ({verdict})")
-            }
+        let verdict = if self.correct(k) { "correct" } else { "FALSE" };
+        match &self.nearest[k] {
+            Some((id, mm, deg)) => format!("; object {id}: {mm:.1} mm, {deg:.1} deg off ({verdict})"),
             None => "; no object of this model (FALSE)".into(),
         }
     }
 
+    fn in_view(&self) -> &'static str {
+        if self.in_view_from_depth {
+            "in view (30% of their edges, by depth_left.png)"
+        } else {
+            "(no depth_left.png beside it: all counted as in view)"
+        }
+    }
+
     fn summary(&self) -> String {
-        let correct = self.reports.iter().filter(|r| Self::correct(r)).count();
-        let missing: Vec<String> = self.not_located().iter().map(|(id, m)| format!("{m} (object {id})")).collect();
+        let s = &self.stats;
+        let missing: Vec<String> = self.missed.iter().map(|(id, m)| format!("{m} (object {id})")).collect();
         format!(
-            "against {}: {correct} of {} reports correct; not located ({} of {} objects, some perhaps hidden): {}",
+            "against {}: {} of {} reports correct, {} false; located {} of {} objects {}; not located: {}",
             self.file,
-            self.reports.len(),
-            missing.len(),
-            self.objects.len(),
+            s.reports - s.false_positives,
+            s.reports,
+            s.false_positives,
+            s.located,
+            s.eligible,
+            self.in_view(),
             if missing.is_empty() { "none".into() } else { missing.join(", ") }
         )
     }
 
     fn to_json(&self) -> serde_json::Value {
-        let reports: Vec<serde_json::Value> = self
-            .reports
-            .iter()
-            .map(|r| match r {
-                Some((id, mm, deg)) => serde_json::json!({ "object": id, "pos_err_mm": mm, "rot_err_deg": deg, "correct": Self::correct(r) }),
+        let reports: Vec<serde_json::Value> = (0..self.nearest.len())
+            .map(|k| match &self.nearest[k] {
+                Some((id, mm, deg)) => serde_json::json!({ "object": id, "pos_err_mm": mm, "rot_err_deg": deg, "correct": self.correct(k) }),
                 None => serde_json::json!({ "object": null, "correct": false }),
             })
             .collect();
         let not_located: Vec<serde_json::Value> =
-            self.not_located().iter().map(|(id, m)| serde_json::json!({ "object": id, "model": m })).collect();
-        serde_json::json!({ "file": self.file, "reports": reports, "not_located": not_located })
+            self.missed.iter().map(|(id, m)| serde_json::json!({ "object": id, "model": m })).collect();
+        let s = &self.stats;
+        serde_json::json!({
+            "file": self.file,
+            "reports": reports,
+            "not_located": not_located,
+            "located": s.located,
+            "in_view": s.eligible,
+            "in_view_from_depth": self.in_view_from_depth,
+            "false_reports": s.false_positives,
+        })
     }
 }

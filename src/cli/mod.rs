@@ -5,6 +5,8 @@
 //! - [`eval_run`]: seeded runs judged against the simulation's truth.
 //! - [`eval_run_batch`]: `eval run` over a seed range: shards, records per scene, merging.
 //! - [`eval_locate`]: the matcher over seeded scenes against the truth, batched the same way.
+//! - [`eval_pairs`]: the matcher on pairs imaged anywhere (folders of scenes), against their truth.
+//! - [`pair_truth`]: a pair's truth from `marvin render`'s scene.json, for `locate` and `eval pairs`.
 //! - [`batch`]: the scene loop batched verbs share (`--shard`, `--out`, `--resume`, `--jobs`).
 //! - [`scene`]: a seeded scene rendered and through the front end, for `locate` and `eval`.
 //! - [`render`]: settle a world and render both cameras.
@@ -33,6 +35,7 @@ pub mod edges;
 pub mod eval;
 pub mod eval_calibrate;
 pub mod eval_locate;
+pub mod eval_pairs;
 pub mod eval_pick;
 pub mod eval_run;
 pub mod eval_run_batch;
@@ -40,6 +43,7 @@ pub mod eval_vision;
 pub mod locate;
 pub mod locate_pair;
 pub mod output;
+pub mod pair_truth;
 pub mod pick;
 pub mod render;
 pub mod run;

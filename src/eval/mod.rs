@@ -462,7 +462,7 @@ mod tests {
             image_support: 0.6,
             grasps: Vec::new(),
         };
-        let f = false_report((3, &report), &scene, &truths, &[Isometry3::identity()], &cam);
+        let f = false_report((3, &report), &scene.objects, &truths, &[Isometry3::identity()], &cam);
         let want = [-0.05, 0.07, 0.02];
         assert!(f.world_m.iter().zip(want).all(|(got, want)| (got - want).abs() < 1e-9), "{:?}", f.world_m);
         assert_eq!(f.same_model, None, "no wedge in the scene");
@@ -624,40 +624,42 @@ pub fn visible_fraction(
     seen / all.max(1e-12)
 }
 
-/// Compares located objects (poses in the left camera's frame) with the scene's truth.
+/// Compares located objects (poses in the left camera's frame) with the scene's truth. The
+/// objects in view are those the left camera's depth map (metres) shows 30% of the feature
+/// edges of; without a depth map, every object.
 pub fn locate_stats(
     located: &[vision::matcher::Located],
-    scene: &sim::Scene,
+    objects: &[sim::scene::SceneObject],
     library: &mesh::Library,
     cams: &EvalCameras,
-    left_depth: &[f32],
+    left_depth: Option<&[f32]>,
     symmetry: &std::collections::BTreeMap<String, Vec<nalgebra::Isometry3<f64>>>,
 ) -> LocateStats {
     // Reports are in the frame of the camera vision was given: the truth is put there through
     // the world, as a user who took that calibration on trust would put a report in the world.
     let cam = &cams.vision.left;
     let truths: Vec<(usize, nalgebra::Isometry3<f64>)> =
-        scene.objects.iter().enumerate().map(|(i, o)| (i, cam.cam_from_world() * o.world_from_model)).collect();
+        objects.iter().enumerate().map(|(i, o)| (i, cam.cam_from_world() * o.world_from_model)).collect();
     let truly = &cams.true_left;
-    let visible: Vec<f64> = scene
-        .objects
+    // Without a depth map every object counts as in view.
+    let visible: Vec<f64> = objects
         .iter()
         .map(|o| {
             let pose = truly.pinhole.cam_from_world() * o.world_from_model;
-            visible_fraction(&library.models[&o.model], &pose, truly, left_depth)
+            left_depth.map_or(1.0, |depth| visible_fraction(&library.models[&o.model], &pose, truly, depth))
         })
         .collect();
     let eligible: Vec<bool> = visible.iter().map(|v| *v >= 0.3).collect();
     let mut stats =
         LocateStats { eligible: eligible.iter().filter(|e| **e).count(), reports: located.len(), ..Default::default() };
-    for (o, &e) in scene.objects.iter().zip(&eligible) {
+    for (o, &e) in objects.iter().zip(&eligible) {
         stats.by_model.entry(o.model.clone()).or_default()[0] += usize::from(e);
     }
-    let mut taken = vec![false; scene.objects.len()];
+    let mut taken = vec![false; objects.len()];
     for (index, loc) in located.iter().enumerate() {
         let best = truths
             .iter()
-            .filter(|(i, _)| scene.objects[*i].model == loc.model && !taken[*i])
+            .filter(|(i, _)| objects[*i].model == loc.model && !taken[*i])
             .map(|(i, pose)| (*i, pose_error(&loc.cam_from_model, pose, &symmetry[&loc.model])))
             .min_by(|a, b| a.1.0.total_cmp(&b.1.0));
         match best {
@@ -670,11 +672,11 @@ pub fn locate_stats(
             }
             _ => {
                 stats.false_positives += 1;
-                stats.false_reports.push(false_report((index, loc), scene, &truths, &symmetry[&loc.model], cam));
+                stats.false_reports.push(false_report((index, loc), objects, &truths, &symmetry[&loc.model], cam));
             }
         }
     }
-    for (i, o) in scene.objects.iter().enumerate().filter(|(i, _)| eligible[*i] && !taken[*i]) {
+    for (i, o) in objects.iter().enumerate().filter(|(i, _)| eligible[*i] && !taken[*i]) {
         stats.missed.push(Missed { id: i, model: o.model.clone(), visible_fraction: visible[i], at_truth: None });
     }
     stats
@@ -683,14 +685,14 @@ pub fn locate_stats(
 /// What lay nearest a report that matched nothing.
 fn false_report(
     (index, loc): (usize, &vision::matcher::Located),
-    scene: &sim::Scene,
+    objects: &[sim::scene::SceneObject],
     truths: &[(usize, nalgebra::Isometry3<f64>)],
     symmetry: &[nalgebra::Isometry3<f64>],
     cam: &mesh::PinholeCamera,
 ) -> FalseReport {
     let same_model = truths
         .iter()
-        .filter(|(i, _)| scene.objects[*i].model == loc.model)
+        .filter(|(i, _)| objects[*i].model == loc.model)
         .map(|(i, pose)| {
             let (pos, rot) = pose_error(&loc.cam_from_model, pose, symmetry);
             (*i, pos * 1e3, rot.to_degrees())
@@ -700,7 +702,7 @@ fn false_report(
         .iter()
         .map(|(i, pose)| (*i, (pose.translation.vector - loc.cam_from_model.translation.vector).norm() * 1e3))
         .min_by(|a, b| a.1.total_cmp(&b.1))
-        .map(|(i, d)| (i, scene.objects[i].model.clone(), d));
+        .map(|(i, d)| (i, objects[i].model.clone(), d));
     FalseReport {
         model: loc.model.clone(),
         support_fraction: loc.support_fraction,
