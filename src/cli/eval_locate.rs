@@ -147,7 +147,7 @@ fn measure_as_reported(
 }
 
 /// The matcher's measures of `model` at `pose` (`cam`).
-fn measure_at(
+pub(super) fn measure_at(
     model: &vision::matcher::MatcherModel,
     pose: &Isometry3<f64>,
     (lines, params): (&[vision::matcher::Seg], &vision::matcher::MatchParams),

@@ -7,7 +7,7 @@
 //! the pipeline on images another renderer, or a real rig, made of the same scenes.
 
 use super::edges::load_grey_noting;
-use super::eval_locate::{LocateScene, summarise};
+use super::eval_locate::{LocateScene, measure_at, summarise};
 use super::locate_pair::{PairReading, load_cameras, read_pair};
 use super::pair_truth::SceneTruth;
 use anyhow::{Context, bail};
@@ -41,9 +41,10 @@ pub fn run(dir: &Path, cameras: &Path, json: bool) -> anyhow::Result<()> {
         let truth = SceneTruth::load(&folder.join(TRUTH))?;
         let pair = load_pair(folder, &calib)?;
         let match_clock = Instant::now();
-        let PairReading { located, .. } = read_pair(&pair, &models);
+        let PairReading { located, fe, top, .. } = read_pair(&pair, &models);
         let match_ms = match_clock.elapsed().as_secs_f64() * 1e3;
-        let stats = truth.judge(&library, &located);
+        let mut stats = truth.judge(&library, &located);
+        measure_missed(&mut stats.missed, &truth, &models, (&pair, &fe, top.as_ref()));
         let line = format!(
             "{}: located {}/{} objects in view, {} false of {} reports",
             folder.display(),
@@ -125,4 +126,21 @@ fn load_pair(folder: &Path, calib: &mesh::StereoCalibration) -> anyhow::Result<P
         eprintln!("note: {note}");
     }
     Ok(Pair { left, right, calib: calib.clone() })
+}
+
+/// Each missed object measured at its true pose as the matcher measures its readings (`eval
+/// locate`'s `at_truth`): whether the evidence was there, judged afterwards.
+fn measure_missed(
+    missed: &mut [marvin::eval::Missed],
+    truth: &SceneTruth,
+    models: &[vision::matcher::MatcherModel],
+    (pair, fe, top): (&Pair, &vision::front_end::FrontEnd, Option<&vision::front_end::table_top::TableTop>),
+) {
+    let evidence = vision::matcher::verify::ImageEvidence::of_pair(&pair.calib, fe);
+    let lines = marvin::engine::perception::scene_lines(fe);
+    let params = marvin::engine::perception::part_params(top.map(|t| t.table.cam_from_table()).as_ref());
+    for m in missed {
+        let Some(model) = models.iter().find(|x| x.name == m.model) else { continue };
+        m.at_truth = Some(measure_at(model, &truth.cam_from_model(m.id), (&lines, &params), &evidence));
+    }
 }

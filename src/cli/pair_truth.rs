@@ -36,6 +36,11 @@ impl SceneTruth {
         Ok(SceneTruth { path: path.to_path_buf(), seed: scene["seed"].as_u64(), objects, cams, left_depth })
     }
 
+    /// Object `index`'s pose in vision's frame (the true left camera's).
+    pub fn cam_from_model(&self, index: usize) -> Isometry3<f64> {
+        self.cams.vision.left.cam_from_world() * self.objects[index].world_from_model
+    }
+
     /// The objects' ids in the id maps.
     pub fn id(&self, index: usize) -> u32 {
         self.objects[index].id
