@@ -260,4 +260,16 @@ fn a_pair_from_files_is_located_through_measured_cameras() {
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && e.contains("half") && e.contains("right.png"), "{e}");
     std::fs::remove_dir_all(&half).unwrap();
+    // Without the depth map beside scene.json, every object counts as in view, and it says so.
+    let bare = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("realistic_pairs_bare");
+    std::fs::create_dir_all(bare.join("340002")).unwrap();
+    for f in ["left.png", "right.png", "scene.json"] {
+        std::fs::copy(dir.join(f), bare.join("340002").join(f)).unwrap();
+    }
+    let summed: serde_json::Value =
+        serde_json::from_slice(&run(&["eval", "pairs", bare.to_str().unwrap(), "--cameras", CAMERAS, "--json"]))
+            .unwrap();
+    let read = &summed["scenes_read"][0];
+    assert_eq!(read["in_view_from_depth"], false, "{summed}");
+    assert_eq!(read["in_view"].as_u64().unwrap() as usize, truths.len(), "{summed}");
 }
