@@ -27,6 +27,7 @@ pub fn run(world: &Path, seed: Option<u64>, out: &Path) -> anyhow::Result<()> {
     for (name, frame) in [("left", &left), ("right", &right)] {
         write_frame(frame, name, out)?;
     }
+    write_obj(&scene, &scn.library, &out.join("scene.obj"))?;
     let record = SceneRecord::new(&scn, &scene, &imaging);
     let path = out.join("scene.json");
     std::fs::write(&path, serde_json::to_string_pretty(&record)?)
@@ -49,4 +50,34 @@ fn write_frame(f: &Frame, name: &str, out: &Path) -> anyhow::Result<()> {
     let ids = ImageBuffer::<Luma<u16>, _>::from_raw(w, h, f.ids.clone()).context("id map size")?;
     save(format!("ids_{name}.png"), ids.save(out.join(format!("ids_{name}.png"))))?;
     Ok(())
+}
+
+/// The settled scene's surfaces as a Wavefront OBJ in the world frame (metres, z up): one object
+/// a surface, named as the id maps number them (`object_<id>_<model>`, `arm_<id>_<link>`) or by
+/// its static box's name, spaces as underscores (`table`, `bin_a_wall_-x`), so that another renderer can image the
+/// same scene.
+fn write_obj(scene: &sim::Scene, library: &mesh::Library, path: &Path) -> anyhow::Result<()> {
+    use std::fmt::Write;
+    let statics = scene.statics.iter().map(|b| (b.name.replace(' ', "_"), b.mesh()));
+    let objects = scene.objects.iter().map(|o| {
+        (format!("object_{}_{}", o.id, o.model), library.models[&o.model].mesh.transformed(&o.world_from_model))
+    });
+    let arm = scene
+        .arm
+        .iter()
+        .enumerate()
+        .map(|(k, (link, m))| (format!("arm_{}_{link}", sim::render::arm_link_id(k)), m.clone()));
+    let mut text = String::from("# marvin render: the settled scene, world frame, metres\n");
+    let mut first = 1;
+    for (name, m) in statics.chain(objects).chain(arm) {
+        writeln!(text, "o {name}")?;
+        for v in &m.vertices {
+            writeln!(text, "v {:.6} {:.6} {:.6}", v.x, v.y, v.z)?;
+        }
+        for t in &m.triangles {
+            writeln!(text, "f {} {} {}", first + t[0] as usize, first + t[1] as usize, first + t[2] as usize)?;
+        }
+        first += m.vertices.len();
+    }
+    std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
 }
