@@ -75,6 +75,10 @@ enum Command {
         /// Output folder (created if missing).
         #[arg(long, default_value = "out/render")]
         out: PathBuf,
+        /// Render this many scenes, seeds `--seed` on, each in a folder of `--out` named by its
+        /// seed: the folder of scenes `marvin eval pairs` reads.
+        #[arg(long, requires = "seed", value_parser = clap::value_parser!(u64).range(1..=cli::args::MAX_COUNT))]
+        scenes: Option<u64>,
     },
     /// Canny edges and edge strings of any image.
     ///
@@ -361,7 +365,7 @@ fn main() -> std::process::ExitCode {
             let max_cycles = max_cycles as usize;
             run::run(run::RunArgs { world, seed, connect, hand_eye, cameras, max_cycles, json, rerun, save_captures })
         }
-        Command::Render { world, seed, out } => render::run(&world, seed, &out),
+        Command::Render { world, seed, out, scenes } => render::run(&world, seed, &out, scenes),
         Command::Edges { image, sigma, json, out } => edges::run(&image, sigma, json, out.as_deref()),
         Command::Stereo { left, right, calib, cameras, rectified, disparity, slices, json, out } => {
             stereo::geometry(calib.as_deref(), cameras.as_deref(), rectified, disparity)

@@ -146,7 +146,8 @@ fn a_pair_from_files_is_located_through_measured_cameras() {
         assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
         out.stdout
     };
-    run(&["render", "worlds/widgets.toml", "--seed", "340002", "--out", dir.to_str().unwrap()]);
+    // `--scenes` renders each scene into a folder named by its seed, as `eval pairs` reads them.
+    run(&["render", "worlds/widgets.toml", "--seed", "340002", "--scenes", "1", "--out", scenes.to_str().unwrap()]);
     let (left, right) = (dir.join("left.png"), dir.join("right.png"));
     let doc: serde_json::Value = serde_json::from_slice(&run(&[
         "locate",

@@ -10,13 +10,14 @@ depth map, each pixel integrated over its N x N samples, a Gaussian lens blur, v
 and sensors of their own (shot and read noise, fixed-pattern gain, gains, black levels and
 response curves that differ between the two cameras).
 
-Usage:
-    marvin render <fine world> --seed S --out FINE      # cameras N x resolution, N x focal_px
-    marvin render <world> --seed S --out SCENE/S       # the scene's own truth (scene.json, depth)
-    python3 tools/other_renderer.py FINE SCENE/S [--variant mild|harsh]
+Usage (the fine world: a copy of the world with each camera's `resolution = [2048, 2048]` and
+`focal_px = 4000.0`, its `urdf` path still reaching the URDF):
+    marvin render <world> --seed S --scenes K --out SCENES        # each scene's truth, SCENES/<seed>/
+    marvin render <fine world> --seed S --scenes K --out FINE
+    python3 tools/other_renderer.py FINE/<seed> SCENES/<seed> [--variant mild|harsh] [--set k=json]
 
-writes SCENE/S/left.png and right.png over the cell's own (keep a copy to compare). Then
-`marvin eval pairs SCENE --cameras cameras.json` reads every scene as a user's pair.
+writes SCENES/<seed>/left.png and right.png over the cell's own (keep a copy to compare). Then
+`marvin eval pairs SCENES --cameras cameras.json` reads every scene as a user's pair.
 Needs numpy, scipy and Pillow; it is not part of the project's build or tests.
 """
 

@@ -1,4 +1,5 @@
-//! `marvin render`: settle a world, render the stereo pair, write images, maps and scene.json.
+//! `marvin render`: settle a world, render the stereo pair, write images, maps, scene.json and
+//! scene.obj; with `--scenes`, a folder of such scenes, one a seed.
 
 use anyhow::Context;
 use image::{ImageBuffer, Luma};
@@ -8,11 +9,19 @@ use sim::render::Frame;
 use std::path::Path;
 use std::time::Instant;
 
-pub fn run(world: &Path, seed: Option<u64>, out: &Path) -> anyhow::Result<()> {
+/// One scene into `out`, or `scenes` of them from `seed` on, each into `out/<seed>`.
+pub fn run(world: &Path, seed: Option<u64>, out: &Path, scenes: Option<u64>) -> anyhow::Result<()> {
     let scn = Scenario::load(world)?;
     let seed = seed.unwrap_or(scn.world.seed);
+    match scenes {
+        None => render_one(&scn, seed, out),
+        Some(n) => (seed..seed + n).try_for_each(|s| render_one(&scn, s, &out.join(s.to_string()))),
+    }
+}
+
+fn render_one(scn: &Scenario, seed: u64, out: &Path) -> anyhow::Result<()> {
     let t0 = Instant::now();
-    let (scene, _) = super::output::settle(&scn, seed);
+    let (scene, _) = super::output::settle(scn, seed);
     eprintln!(
         "settled {} objects in {:.1} s simulated ({:.2} s wall)",
         scene.objects.len(),
@@ -28,7 +37,7 @@ pub fn run(world: &Path, seed: Option<u64>, out: &Path) -> anyhow::Result<()> {
         write_frame(frame, name, out)?;
     }
     write_obj(&scene, &scn.library, &out.join("scene.obj"))?;
-    let record = SceneRecord::new(&scn, &scene, &imaging);
+    let record = SceneRecord::new(scn, &scene, &imaging);
     let path = out.join("scene.json");
     std::fs::write(&path, serde_json::to_string_pretty(&record)?)
         .with_context(|| format!("writing {}", path.display()))?;
