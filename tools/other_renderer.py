@@ -5,8 +5,8 @@ It shares no code with `sim`'s renderer: it takes the geometry alone (the depth 
 scene.json that `marvin render` writes of a world whose cameras are N times finer) and forms
 the 512x512 pair its own way: surface normals from the depth, a spot lamp with fall-off and a
 fill lamp, ambient light from above, Blinn-Phong highlights, each part's albedo off the
-library's by up to +-15%, a table textured in world coordinates, shadows marched through the
-depth map, each pixel integrated over its N x N samples, a Gaussian lens blur, vignetting,
+library's by up to +-15%, a table textured in world coordinates, shadows marched through
+both cameras' depth maps, each pixel integrated over its N x N samples, a Gaussian lens blur, vignetting,
 and sensors of their own (shot and read noise, fixed-pattern gain, gains, black levels and
 response curves that differ between the two cameras).
 
