@@ -36,6 +36,7 @@ pub fn run(dir: &Path, cameras: &Path, json: bool) -> anyhow::Result<()> {
     let progress = super::output::Progress::new(folders.len() as u64, json);
     let mut records = Vec::new();
     let mut per_folder = Vec::new();
+    let mut all_fates: std::collections::BTreeMap<String, usize> = std::collections::BTreeMap::new();
     for (k, folder) in folders.iter().enumerate() {
         let clock = Instant::now();
         let truth = SceneTruth::load(&folder.join(TRUTH))?;
@@ -45,6 +46,10 @@ pub fn run(dir: &Path, cameras: &Path, json: bool) -> anyhow::Result<()> {
         let match_ms = match_clock.elapsed().as_secs_f64() * 1e3;
         let mut stats = truth.judge(&library, &located);
         measure_missed(&mut stats.missed, &truth, &models, (&pair, &fe, top.as_ref()));
+        let fates = truth.part_edgel_fates(&library, &fe, &calib);
+        for (fate, n) in &fates {
+            *all_fates.entry(fate.clone()).or_insert(0) += n;
+        }
         let line = format!(
             "{}: located {}/{} objects in view, {} false of {} reports",
             folder.display(),
@@ -80,6 +85,7 @@ pub fn run(dir: &Path, cameras: &Path, json: bool) -> anyhow::Result<()> {
     report["seeds"] = json!(null);
     report["cameras"] = shared["cameras"].clone();
     report["scenes_read"] = json!(per_folder);
+    report["part_edgels"] = fates_as_fractions(&all_fates);
     super::batch::print_report(report, Shard::ALL, json)
 }
 
@@ -143,4 +149,13 @@ fn measure_missed(
         let Some(model) = models.iter().find(|x| x.name == m.model) else { continue };
         m.at_truth = Some(measure_at(model, &truth.cam_from_model(m.id), (&lines, &params), &evidence));
     }
+}
+
+/// Edgel fates as fractions of all counted, with the count.
+fn fates_as_fractions(fates: &std::collections::BTreeMap<String, usize>) -> serde_json::Value {
+    let total: usize = fates.values().sum();
+    let mut out: serde_json::Map<String, serde_json::Value> =
+        fates.iter().map(|(k, n)| (k.clone(), json!(*n as f64 / total.max(1) as f64))).collect();
+    out.insert("counted".into(), json!(total));
+    serde_json::Value::Object(out)
 }

@@ -88,7 +88,7 @@ pub fn eval(b: &Batch, sources: &Sources) -> anyhow::Result<()> {
             lines.endpoint_quantile(0.5),
             lines.coverage()
         );
-        let fates = edgel_fates(&fe, &truth, &cams, &arm);
+        let fates = edgel_fates(&fe, &truth, &cams, &|e| arm.covers(e.x as f64, e.y as f64));
         let timings_ms = fe.timings_ms.iter().map(|(k, ms)| (k.to_string(), *ms)).collect();
         let figures = VisionScene { disparity, on_arm, lines, fates, unsettled: !settled, timings_ms };
         Ok((serde_json::to_value(figures)?, line))

@@ -55,6 +55,40 @@ impl SceneTruth {
         locate_stats(located, &self.objects, library, &self.cams, self.left_depth.as_deref(), &symmetry)
     }
 
+    /// What became of the left edgels on the parts' edges (`eval vision`'s `left_edgels`,
+    /// [`marvin::eval::edgel_fates`]), judged through `measured`, the cameras vision was given,
+    /// placed where the true left camera stands. The truth is the parts and the table's top:
+    /// an edgel counts where a ray a pixel either side of it, or through it, meets a part.
+    pub fn part_edgel_fates(
+        &self,
+        library: &mesh::Library,
+        fe: &vision::front_end::FrontEnd,
+        measured: &mesh::StereoCalibration,
+    ) -> BTreeMap<String, usize> {
+        let parts: Vec<mesh::TriMesh> = self
+            .objects
+            .iter()
+            .filter_map(|o| library.models.get(&o.model).map(|m| m.mesh.transformed(&o.world_from_model)))
+            .collect();
+        let part_triangles: usize = parts.iter().map(|m| m.triangles.len()).sum();
+        let table = mesh::TriMesh::cuboid(nalgebra::Vector3::new(2.0, 2.0, 0.025), 0.3)
+            .transformed(&Isometry3::translation(0.0, 0.0, -0.025));
+        let truth = marvin::eval::truth::TruthScene::new(parts.into_iter().chain([table]));
+        let world_from_left = self.cams.true_left.pinhole.world_from_cam;
+        let mut vision = measured.clone();
+        vision.left.world_from_cam = world_from_left * measured.left.world_from_cam;
+        vision.right.world_from_cam = world_from_left * measured.right.world_from_cam;
+        let cams = EvalCameras { vision, ..self.cams.clone() };
+        let on_part = |e: &vision::Edgel| {
+            let (s, c) = (e.orientation as f64).sin_cos();
+            [-1.0, 0.0, 1.0].iter().any(|k| {
+                let (o, d) = cams.true_left.ray_world(e.x as f64 + k * c, e.y as f64 + k * s);
+                truth.cast(&o, &d).is_some_and(|(_, t)| t < part_triangles)
+            })
+        };
+        marvin::eval::edgel_fates(fe, &truth, &cams, &|e| !on_part(e))
+    }
+
     pub fn has_depth(&self) -> bool {
         self.left_depth.is_some()
     }

@@ -117,7 +117,7 @@ pub fn disparity_stats(
     (workspace, on_arm)
 }
 
-/// What became of each left edgel on the workspace (not the arm) that has a true disparity:
+/// What became of each left edgel (but those `skip` leaves out: the arm's) that has a true disparity:
 /// matched within 0.5 px of it, matched further off, unmatched though a right edgel within
 /// 1 px of the true disparity was a candidate (lost to a rival in PMF's later steps), or
 /// unmatched for the candidate test its would-be partners failed ([`pmf::Refusal`]). Counts by
@@ -126,7 +126,7 @@ pub fn edgel_fates(
     fe: &FrontEnd,
     truth: &TruthScene,
     cams: &EvalCameras,
-    arm: &ArmMask,
+    skip: &dyn Fn(&vision::Edgel) -> bool,
 ) -> std::collections::BTreeMap<String, usize> {
     use vision::front_end::pmf::{PmfParams, refusal};
     let rect = Rectification::new(&cams.vision);
@@ -153,7 +153,7 @@ pub fn edgel_fates(
     }
     let mut fates = std::collections::BTreeMap::new();
     for (i, e) in fe.left.edgels.iter().enumerate() {
-        if arm.covers(e.x as f64, e.y as f64) {
+        if skip(e) {
             continue;
         }
         let Some(d) = truth.disparity(cams, &rect, e.x as f64, e.y as f64, e.orientation as f64) else {
