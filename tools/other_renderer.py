@@ -28,7 +28,7 @@ import re
 
 import numpy as np
 from PIL import Image
-from scipy.ndimage import gaussian_filter
+from scipy.ndimage import gaussian_filter, maximum_filter, minimum_filter
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ARM_ID_BASE = 1000
@@ -166,18 +166,16 @@ def value_noise(xy, scale, rng_seed):
             + g(x0, y0 + 1) * (1 - fx) * fy + g(x0 + 1, y0 + 1) * fx * fy)
 
 
-def shadowed(P, valid, views):
-    """1 where the key lamp is hidden: a march from each point towards the lamp meets, in both
+def march(points, views):
+    """For world points (N, 3): whether a march from each towards the key lamp meets, in both
     cameras' depth maps, a surface in front of the march's point (within a part's thickness).
     Asking both cameras makes it a function of the point alone, so the two images' shadows agree."""
-    k = 4  # march from every 4th sample (an output pixel), the mask filled back out
-    Ps, vs = P[::k, ::k], valid[::k, ::k]
-    to_lamp = views["lamp"] - Ps
-    dirn = to_lamp / np.linalg.norm(to_lamp, axis=-1, keepdims=True)
-    hit = np.zeros(Ps.shape[:2], bool)
+    dirn = views["lamp"] - points
+    dirn /= np.linalg.norm(dirn, axis=-1, keepdims=True)
+    hit = np.zeros(len(points), bool)
     for s in np.arange(0.003, 0.15, 0.002):
-        q = Ps + dirn * s
-        behind = np.ones(Ps.shape[:2], bool)
+        q = points + dirn * s
+        behind = np.ones(len(points), bool)
         for cam, depth in views["cameras"]:
             u, v, z = cam.project(q)
             ui, vi = np.round(u).astype(int), np.round(v).astype(int)
@@ -185,8 +183,37 @@ def shadowed(P, valid, views):
             d = depth[np.clip(vi, 0, cam.h - 1), np.clip(ui, 0, cam.w - 1)]
             behind &= inside & (d > 0) & (d < z - 0.002) & (d > z - 0.06)
         hit |= behind
-    hit &= vs
-    return np.repeat(np.repeat(hit, k, axis=0), k, axis=1)[: P.shape[0], : P.shape[1]]
+    return hit
+
+
+def shadowed(P, valid, views, k=4):
+    """The key lamp's shadow mask at every fine sample: marched once a k x k block (at its
+    middle), then again at every sample of the blocks where the mask changes, so that a shadow's
+    edge, and a face turned from the lamp, end where the geometry puts them."""
+    h, w = P.shape[0] // k, P.shape[1] // k
+    coarse = march(P[k // 2::k, k // 2::k].reshape(-1, 3), views).reshape(h, w)
+    mixed = maximum_filter(coarse, size=3) != minimum_filter(coarse, size=3)
+    mask = np.repeat(np.repeat(coarse, k, axis=0), k, axis=1)
+    fine = np.nonzero(np.repeat(np.repeat(mixed, k, axis=0), k, axis=1))
+    mask[fine] = march(P[fine], views)
+    return mask & valid
+
+
+def penumbra(mask, ids, sigma):
+    """The hard mask blurred by `sigma` fine samples within each surface (normalised
+    convolution per id), so that a shadow's soft edge does not spill onto the part casting it."""
+    out = np.zeros(mask.shape)
+    for i in np.unique(ids):
+        here = ids == i
+        ys, xs = np.nonzero(here)
+        m = int(4 * sigma) + 1
+        y0, y1 = max(ys.min() - m, 0), min(ys.max() + m + 1, mask.shape[0])
+        x0, x1 = max(xs.min() - m, 0), min(xs.max() + m + 1, mask.shape[1])
+        h = here[y0:y1, x0:x1].astype(np.float64)
+        num = gaussian_filter(mask[y0:y1, x0:x1] * h, sigma)
+        den = gaussian_filter(h, sigma)
+        out[y0:y1, x0:x1][here[y0:y1, x0:x1]] = (num / np.maximum(den, 1e-9))[here[y0:y1, x0:x1]]
+    return out
 
 
 def load_view(fine_dir, side, scene):
@@ -221,8 +248,11 @@ def radiance(view, both, scene, v, albedos, seed):
     view /= np.maximum(np.linalg.norm(view, axis=-1, keepdims=True), 1e-12)
     total = v["ambient"] * (0.6 + 0.4 * np.clip(n[..., 2], 0, 1)) * albedo
     views = {"lamp": key, "cameras": [(c, d) for c, d, _ in both]}
-    # The penumbra: the hard mask blurred by 3 fine samples (about 0.2 mm each at the parts).
-    lit = 1.0 - gaussian_filter(shadowed(P, valid, views).astype(np.float64), 3.0)
+    # A face turned from the key lamp is dark by its own shading: only shadows cast on faces
+    # the lamp would light are masked, and their penumbra lies on the surface they fall on.
+    to_key = key - P
+    facing = np.sum(n * to_key, axis=-1) > 0
+    lit = 1.0 - penumbra(shadowed(P, valid, views) & facing, ids, 3.0)
     for lamp, shade in ((v["key"], lit), (v["fill"], 1.0)):
         pos = np.array(lamp["position"])
         to = pos - P
