@@ -74,11 +74,7 @@ impl SceneTruth {
         let table = mesh::TriMesh::cuboid(nalgebra::Vector3::new(2.0, 2.0, 0.025), 0.3)
             .transformed(&Isometry3::translation(0.0, 0.0, -0.025));
         let truth = marvin::eval::truth::TruthScene::new(parts.into_iter().chain([table]));
-        let world_from_left = self.cams.true_left.pinhole.world_from_cam;
-        let mut vision = measured.clone();
-        vision.left.world_from_cam = world_from_left * measured.left.world_from_cam;
-        vision.right.world_from_cam = world_from_left * measured.right.world_from_cam;
-        let cams = EvalCameras { vision, ..self.cams.clone() };
+        let cams = EvalCameras::measured_at(measured, self.cams.true_left.clone(), self.cams.true_right.clone());
         let on_part = |e: &vision::Edgel| {
             let (s, c) = (e.orientation as f64).sin_cos();
             [-1.0, 0.0, 1.0].iter().any(|k| {

@@ -95,11 +95,17 @@ impl EvalCameras {
     /// `marvin run` uses that measurement. Placed where the world file draws it instead, every
     /// report would carry the mounting's 2 mm and 0.15 deg, which vision cannot see.
     pub fn measured(imaging: &sim::imaging::Imaging, measured: &StereoCalibration) -> EvalCameras {
-        let world_from_left = imaging.rig.left.pinhole.world_from_cam;
+        let truly = EvalCameras::of(imaging);
+        EvalCameras::measured_at(measured, truly.true_left, truly.true_right)
+    }
+
+    /// [`EvalCameras::measured`] for cameras as built given directly (a scene.json's).
+    pub fn measured_at(measured: &StereoCalibration, true_left: LensCamera, true_right: LensCamera) -> EvalCameras {
+        let world_from_left = true_left.pinhole.world_from_cam;
         let mut vision = measured.clone();
         vision.left.world_from_cam = world_from_left * measured.left.world_from_cam;
         vision.right.world_from_cam = world_from_left * measured.right.world_from_cam;
-        EvalCameras { vision, ..EvalCameras::of(imaging) }
+        EvalCameras { vision, true_left, true_right }
     }
 
     /// Vision given the true pinholes exactly (no lens, as the ideal cell has).
