@@ -73,8 +73,9 @@ pub fn run(dir: &Path, cameras: &Path, json: bool) -> anyhow::Result<()> {
             world: dir.display().to_string(),
             range: [0, folders.len() as u64 - 1],
             version: code_version(),
-            // Scenes are numbered by folder; their seeds, where known, are in `scenes_read`.
-            seed: k as u64,
+            // The missed parts and false reports name their scene by its seed where its
+            // scene.json gives one, else by the folder's place in the sorted list.
+            seed: truth.seed.unwrap_or(k as u64),
             shared: shared.clone(),
             scene: serde_json::to_value(scene)?,
         });

@@ -141,6 +141,7 @@ pub fn edgel_fates(
     let right = rect.rectify_edgels(vision::front_end::rectify::Side::Right, &fe.right.edgels);
     let relation = vision::front_end::pmf::photometric_relation(&fe.left_rectified, &right, &fe.left_strings, &params);
     let right: Vec<vision::Edgel> = right.iter().map(|e| relation.map(e)).collect();
+    let params = PmfParams { side_scatter: relation.scatter, ..params };
     let mut matched = vec![None; fe.left.edgels.len()];
     // PMF once more over the whole image, to tell a candidate PMF refused from a match dropped
     // after it (by figural continuity along the right strings or for lying on no 3D line).

@@ -10,6 +10,8 @@
 //! the outliers (the far side of silhouettes, where the backgrounds differ) cut away is the
 //! relation, and the right edgels' grey levels are mapped through it before PMF matches again.
 //! Where the cameras are alike it comes out as the identity to within the sensor noise.
+//! How far the inliers scatter about the curve, by grey level ([`Scatter`]), tells PMF how
+//! alike one surface's two grey levels can be asked to be in this pair.
 //!
 //! The curve is a quadratic, not a line: two sensors whose responses differ (grey level as
 //! `signal^gamma`, gammas 1.0 and 0.85) relate their grey levels by a power, which a line
@@ -27,14 +29,66 @@ pub struct Relation {
     /// `f(x) = c[0] + c[1] x + c[2] x^2` on `range`.
     c: [f32; 3],
     range: (f32, f32),
+    /// How far one surface's two grey levels scatter about the curve.
+    pub scatter: Scatter,
+}
+
+/// How far the grey levels of one surface, seen by both cameras, scatter about the relation
+/// (a robust standard deviation, grey levels), by the left camera's grey level: shot noise
+/// grows with the light, and so do a glossy face's highlight and a lens's fall-off, which
+/// differ between two cameras that see the face from two places. Measured on the inliers of
+/// the fit, in [`SCATTER_BANDS`] bands of grey level; zero where not measured.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Scatter {
+    by_band: [f32; SCATTER_BANDS],
+}
+
+/// Bands of grey level (256 / SCATTER_BANDS levels each) the scatter is measured in.
+pub const SCATTER_BANDS: usize = 8;
+/// Fewest inlier samples in a band for its own scatter; a band with fewer takes all bands'.
+const MIN_BAND_SAMPLES: usize = 40;
+
+impl Scatter {
+    /// The same scatter at every grey level.
+    pub fn uniform(deviation: f32) -> Scatter {
+        Scatter { by_band: [deviation; SCATTER_BANDS] }
+    }
+
+    /// The scatter at left grey level `grey`, between the bands' middles.
+    pub fn at(&self, grey: f32) -> f32 {
+        let width = 256.0 / SCATTER_BANDS as f32;
+        let t = (grey / width - 0.5).clamp(0.0, (SCATTER_BANDS - 1) as f32);
+        let (k, a) = (t.floor() as usize, t.fract());
+        let next = (k + 1).min(SCATTER_BANDS - 1);
+        self.by_band[k] * (1.0 - a) + self.by_band[next] * a
+    }
+
+    /// The scatter of `(right, left)` inlier samples about `relation`.
+    fn measure(samples: &[(f32, f32)], relation: &Relation) -> Scatter {
+        let width = 256.0 / SCATTER_BANDS as f32;
+        let mut bands: Vec<Vec<f32>> = vec![Vec::new(); SCATTER_BANDS];
+        for &(x, y) in samples {
+            let band = ((y / width).max(0.0) as usize).min(SCATTER_BANDS - 1);
+            bands[band].push((y - relation.grey(x)).abs());
+        }
+        let all = 1.4826 * median(bands.concat());
+        let mut by_band = [all; SCATTER_BANDS];
+        for (s, band) in by_band.iter_mut().zip(bands) {
+            if band.len() >= MIN_BAND_SAMPLES {
+                *s = 1.4826 * median(band);
+            }
+        }
+        Scatter { by_band }
+    }
 }
 
 impl Relation {
-    pub const IDENTITY: Relation = Relation { c: [0.0, 1.0, 0.0], range: (0.0, 255.0) };
+    pub const IDENTITY: Relation =
+        Relation { c: [0.0, 1.0, 0.0], range: (0.0, 255.0), scatter: Scatter { by_band: [0.0; SCATTER_BANDS] } };
 
     /// The line `gain x + offset`.
     pub fn linear(gain: f32, offset: f32) -> Relation {
-        Relation { c: [offset, gain, 0.0], range: (0.0, 255.0) }
+        Relation { c: [offset, gain, 0.0], ..Relation::IDENTITY }
     }
 
     /// A right grey level as the left camera would have recorded it.
@@ -93,16 +147,22 @@ pub fn fit(samples: &[(f32, f32)]) -> Relation {
     // Start from the offset alone (gain 1), which the outliers move least.
     let mut relation = Relation::linear(1.0, median(samples.iter().map(|(x, y)| y - x).collect()));
     for _ in 0..ROUNDS {
-        let residual = |&(x, y): &(f32, f32)| y - relation.grey(x);
-        let spread = 1.4826 * median(samples.iter().map(|s| residual(s).abs()).collect());
-        let cut = (CUT_DEVIATIONS * spread).max(MIN_CUT);
-        let kept: Vec<(f32, f32)> = samples.iter().copied().filter(|s| residual(s).abs() <= cut).collect();
+        let kept = inliers(samples, &relation);
         match least_squares(&kept) {
             Some(r) if kept.len() >= MIN_SAMPLES => relation = r,
             _ => break,
         }
     }
+    relation.scatter = Scatter::measure(&inliers(samples, &relation), &relation);
     relation
+}
+
+/// The samples within [`CUT_DEVIATIONS`] robust deviations of `relation` (and `MIN_CUT`).
+fn inliers(samples: &[(f32, f32)], relation: &Relation) -> Vec<(f32, f32)> {
+    let residual = |&(x, y): &(f32, f32)| y - relation.grey(x);
+    let spread = 1.4826 * median(samples.iter().map(|s| residual(s).abs()).collect());
+    let cut = (CUT_DEVIATIONS * spread).max(MIN_CUT);
+    samples.iter().copied().filter(|s| residual(s).abs() <= cut).collect()
 }
 
 /// The least-squares quadratic through the samples, or the line where the quadratic does not
@@ -131,7 +191,7 @@ fn least_squares(samples: &[(f32, f32)]) -> Option<Relation> {
         let c2 = k[2] / (s * s);
         let c1 = k[1] / s - 2.0 * k[2] * m / (s * s);
         let c0 = k[0] - k[1] * m / s + k[2] * m * m / (s * s);
-        Relation { c: [c0 as f32, c1 as f32, c2 as f32], range }
+        Relation { c: [c0 as f32, c1 as f32, c2 as f32], range, scatter: Scatter::default() }
     };
     let quadratic = a.lu().solve(&b).map(|k| from_centred([k[0], k[1], k[2]]));
     let rises = |r: &Relation| r.slope(range.0).min(r.slope(range.1)) >= MIN_SLOPE;
@@ -225,6 +285,30 @@ mod tests {
         let r = fit(&samples);
         assert!(worst(&r, |l| l) < 0.5 && (r.slope(120.0) - 1.0).abs() < 0.01, "{r:?}");
         assert_eq!(fit(&samples[..100]), Relation::IDENTITY, "too few samples");
+    }
+
+    /// Noise that grows with the light (a deviation of 0.5 + 0.02 x the grey level) comes
+    /// back as the scatter at each grey level, outliers and all; too few samples, none.
+    #[test]
+    fn the_scatter_comes_back_by_grey_level() {
+        let deviation = |g: f32| 0.5 + 0.02 * g;
+        let mut rng = rand::rngs::StdRng::seed_from_u64(12);
+        let samples: Vec<(f32, f32)> = (0..3000)
+            .map(|k| {
+                let left: f32 = rng.random_range(10.0..245.0);
+                // Near-Gaussian: the sum of four uniforms, scaled to the deviation.
+                let unit: f32 = (0..4).map(|_| rng.random_range(-1.0f32..1.0)).sum::<f32>() * (3.0f32 / 4.0).sqrt();
+                let right = 1.05 * (left + deviation(left) * unit) + 3.3;
+                let seen = if k % 5 == 0 { rng.random_range(0.0..255.0) } else { left };
+                (right, seen)
+            })
+            .collect();
+        let r = fit(&samples);
+        for g in [40.0, 120.0, 200.0] {
+            let (got, want) = (r.scatter.at(g), deviation(g));
+            assert!((got - want).abs() < 0.25 * want, "at {g}: {got} against {want}");
+        }
+        assert_eq!(fit(&samples[..100]).scatter, Scatter::default());
     }
 
     /// Beyond the grey levels it was fitted on, the curve goes on along its tangent and keeps

@@ -212,3 +212,30 @@ fn strip_seen_by_the_left_camera((x, width, disparity): (f32, f32, f32), p: &Pmf
         !fooled.is_empty() && fooled.iter().all(|m| m.left < 20 && (m.disparity - (disparity - width)).abs() < 1e-3)
     );
 }
+
+/// A crease on a glossy part: both faces a few grey levels brighter in the right image than
+/// PMF's side tolerance allows. Refused while the pair's grey levels are taken to agree to
+/// within the tolerance; a candidate where the pair's own scatter says they agree less well,
+/// but only for a left edgel that no right edgel passes strictly.
+#[test]
+fn a_left_edgel_with_no_candidate_is_judged_again_within_the_pairs_scatter() {
+    let p = PmfParams { disparity_min: 0.0, disparity_max: 100.0, ..PmfParams::default() };
+    let left: Vec<Edgel> =
+        edge(100.0, 10, 1, 0.2, true).into_iter().map(|e| Edgel { sides: [100.0, 200.0], ..e }).collect();
+    let glossy = |x: f32, sides: [f32; 2]| Edgel { sides, ..edge(x, 10, 1, 0.2, true)[0] };
+    let brighter = glossy(60.0, [106.0, 207.0]);
+    let disparities = |right: &[Edgel], p: &PmfParams| {
+        let (_, cands) = candidates(&left, right, p);
+        cands.iter().map(|c| c.disparity).collect::<Vec<f32>>()
+    };
+    assert!(disparities(&[brighter], &p).is_empty());
+    assert_eq!(refusal(&left[0], &[brighter], 40.0, 1.0, &p), Some(Refusal::Sides));
+    let scattered = PmfParams { side_scatter: Scatter::uniform(2.5), ..p };
+    assert_eq!(disparities(&[brighter], &scattered), vec![40.0]);
+    assert_eq!(refusal(&left[0], &[brighter], 40.0, 1.0, &scattered), None);
+    // Twice as far off is still another surface.
+    assert!(disparities(&[glossy(60.0, [112.0, 214.0])], &scattered).is_empty());
+    // A right edgel alike within the tolerance leaves no room for the looser test.
+    let alike = glossy(70.0, [101.0, 198.0]);
+    assert_eq!(disparities(&[brighter, alike], &scattered), vec![30.0]);
+}
