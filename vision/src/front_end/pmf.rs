@@ -247,7 +247,9 @@ fn one_surface_alike(l: &Edgel, r: &Edgel, p: &PmfParams) -> bool {
 }
 
 /// How many of the pair's own deviations ([`PmfParams::side_scatter`]) one surface's two grey
-/// levels may differ by.
+/// levels may differ by. Chosen on tuning seeds 7001-7040 (`marvin eval pairs`, the other
+/// renderer's piled parts; docs/TUNING.md, session 76): 2, 3 and 4 located 0.8891, 0.8945 and
+/// 0.8927 (0.8784 without), the cell's own images of the same scenes 0.9338, 0.9374, 0.9374.
 pub const SIDE_DEVIATIONS: f32 = 3.0;
 
 /// The side test's tolerance at left grey level `grey`: `side_tolerance`, or more where the
@@ -365,7 +367,9 @@ impl RightImage<'_> {
 
 /// Why left edgel `l` has no candidate within `within` px of `disparity` among `right` (all
 /// rectified): the test that the right edgels there came furthest through before failing, or
-/// `None` if one of them is a candidate. For diagnosis; it scans every right edgel.
+/// `None` if one of them is a candidate. For diagnosis; it scans every right edgel. The sides
+/// are judged within the pair's scatter (`p.side_scatter`) as PMF judges an edgel that nothing
+/// passes strictly, even where PMF found such a candidate elsewhere on the raster.
 pub fn refusal(l: &Edgel, right: &[Edgel], disparity: f32, within: f32, p: &PmfParams) -> Option<Refusal> {
     let shape = |e: &Edgel| shapes(std::slice::from_ref(e), p)[0];
     let ls = shape(l);
