@@ -281,4 +281,16 @@ fn a_pair_from_files_is_located_through_measured_cameras() {
     let read = &summed["scenes_read"][0];
     assert_eq!(read["in_view_from_depth"], false, "{summed}");
     assert_eq!(read["in_view"].as_u64().unwrap() as usize, truths.len(), "{summed}");
+    // `--doubt` judges which reports a turn of the part fits as well, and changes none of them.
+    let args = ["eval", "pairs", bare.to_str().unwrap(), "--cameras", CAMERAS, "--doubt", "--json"];
+    let doubted: serde_json::Value = serde_json::from_slice(&run(&args)).unwrap();
+    for key in ["located_fraction", "false_positive_fraction", "scenes_read"] {
+        assert_eq!(doubted[key], summed[key], "{key}");
+    }
+    let (right, wrong) = (&doubted["in_doubt"]["right_reports"], &doubted["in_doubt"]["false_reports"]);
+    let reports = read["reports"].as_u64().unwrap();
+    assert!(right.as_u64().unwrap() + wrong.as_u64().unwrap() <= reports, "{doubted}");
+    let marked = doubted["false_reports"].as_array().unwrap();
+    assert!(marked.iter().all(|f| f["report"]["in_doubt"].is_boolean()), "{doubted}");
+    assert!(summed["in_doubt"].is_null(), "judged only when asked: {summed}");
 }

@@ -108,6 +108,10 @@ pub enum EvalTarget {
         /// a scene.json).
         #[arg(long)]
         cameras: PathBuf,
+        /// Also judge which reports are in doubt, as `eval locate --doubt` does; adds
+        /// `in_doubt` (right and false reports in doubt) and marks each false report.
+        #[arg(long)]
+        doubt: bool,
         #[arg(long)]
         json: bool,
     },
@@ -317,7 +321,7 @@ pub fn run(target: EvalTarget) -> anyhow::Result<()> {
             super::eval_run_batch::eval(&batch.batch(world, scenes, seed, json)?, &shared)
         }
         EvalTarget::Merge { files, json } => merge(&files, json),
-        EvalTarget::Pairs { dir, cameras, json } => super::eval_pairs::run(&dir, &cameras, json),
+        EvalTarget::Pairs { dir, cameras, doubt, json } => super::eval_pairs::run(&dir, &cameras, (doubt, json)),
         EvalTarget::Calibrate {
             what: Some(EvalCalibrateWhat::Cameras { world, trials, seed, poses, json, batch }),
             ..

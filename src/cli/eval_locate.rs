@@ -89,7 +89,7 @@ pub fn eval(b: &Batch, sources: &Sources) -> anyhow::Result<()> {
         let mut stats = locate_stats(&located, &p.scene.objects, &scn.library, &p.cams, Some(&p.left.depth), &symmetry);
         measure_at_truth(&mut stats.missed, &p.scene, &calib, (&models, &lines, &params), &evidence);
         measure_as_reported(&mut stats.false_reports, &located, (&models, &lines, &params), &evidence);
-        let in_doubt = sources.doubt.then(|| in_doubt(&stats, &located, (&models, &lines, &params), &evidence));
+        let in_doubt = sources.doubt.then(|| in_doubt(&mut stats, &located, (&models, &lines, &params), &evidence));
         let line = format!(
             "located {}/{} visible objects, {} false of {} reports",
             stats.located, stats.eligible, stats.false_positives, stats.reports
@@ -101,9 +101,9 @@ pub fn eval(b: &Batch, sources: &Sources) -> anyhow::Result<()> {
 }
 
 /// How many of the right reports, and of the false ones, are in doubt: a turn of the part fits
-/// them as well in both images.
-fn in_doubt(
-    stats: &LocateStats,
+/// them as well in both images. Each false report is marked.
+pub(super) fn in_doubt(
+    stats: &mut LocateStats,
     located: &[vision::matcher::Located],
     (models, lines, params): (&[vision::matcher::MatcherModel], &[vision::matcher::Seg], &vision::matcher::MatchParams),
     evidence: &vision::matcher::verify::ImageEvidence,
@@ -111,6 +111,9 @@ fn in_doubt(
     let all = vec![true; located.len()];
     let alike = vision::matcher::polish::doubt::turned_alike(models, (lines, params), evidence, located, &all);
     let doubted = |i: usize| alike[i].is_some();
+    for f in &mut stats.false_reports {
+        f.in_doubt = Some(doubted(f.index));
+    }
     let false_ones: Vec<usize> = stats.false_reports.iter().map(|f| f.index).collect();
     let (wrong, right): (Vec<usize>, Vec<usize>) =
         (0..located.len()).filter(|&i| doubted(i)).partition(|i| false_ones.contains(i));

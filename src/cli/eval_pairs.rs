@@ -7,7 +7,7 @@
 //! the pipeline on images another renderer, or a real rig, made of the same scenes.
 
 use super::edges::load_grey_noting;
-use super::eval_locate::{LocateScene, measure_at, summarise};
+use super::eval_locate::{LocateScene, in_doubt, measure_at, summarise};
 use super::locate_pair::{PairReading, load_cameras, read_pair};
 use super::pair_truth::SceneTruth;
 use anyhow::{Context, bail};
@@ -22,7 +22,7 @@ const LEFT: &str = "left.png";
 const RIGHT: &str = "right.png";
 const TRUTH: &str = "scene.json";
 
-pub fn run(dir: &Path, cameras: &Path, json: bool) -> anyhow::Result<()> {
+pub fn run(dir: &Path, cameras: &Path, (doubt, json): (bool, bool)) -> anyhow::Result<()> {
     let folders = scene_folders(dir)?;
     let calib = load_cameras(cameras)?;
     let library = mesh::Library::load_default()?;
@@ -45,7 +45,10 @@ pub fn run(dir: &Path, cameras: &Path, json: bool) -> anyhow::Result<()> {
         let PairReading { located, fe, top, .. } = read_pair(&pair, &models);
         let match_ms = match_clock.elapsed().as_secs_f64() * 1e3;
         let mut stats = truth.judge(&library, &located);
-        measure_missed(&mut stats.missed, &truth, &models, (&pair, &fe, top.as_ref()));
+        let reading = Reading::of(&pair, &fe, top.as_ref());
+        measure_missed(&mut stats.missed, &truth, &models, &reading);
+        let in_doubt = doubt
+            .then(|| in_doubt(&mut stats, &located, (&models, &reading.lines, &reading.params), &reading.evidence));
         let fates = truth.part_edgel_fates(&library, &fe, &calib);
         for (fate, n) in &fates {
             *all_fates.entry(fate.clone()).or_insert(0) += n;
@@ -67,7 +70,7 @@ pub fn run(dir: &Path, cameras: &Path, json: bool) -> anyhow::Result<()> {
             "false_reports": stats.false_positives,
             "reports": stats.reports,
         }));
-        let scene = LocateScene { stats, unsettled: false, match_ms, table_found: None, in_doubt: None };
+        let scene = LocateScene { stats, unsettled: false, match_ms, table_found: None, in_doubt };
         records.push(Record {
             verb: "locate".into(),
             world: dir.display().to_string(),
@@ -135,20 +138,40 @@ fn load_pair(folder: &Path, calib: &mesh::StereoCalibration) -> anyhow::Result<P
     Ok(Pair { left, right, calib: calib.clone() })
 }
 
+/// What the matcher read a pair with: the left image's evidence (the right's within it), the
+/// 3D lines and the parameters with the table the pair's own lines gave.
+struct Reading<'e> {
+    evidence: vision::matcher::verify::ImageEvidence<'e>,
+    lines: Vec<vision::matcher::Seg>,
+    params: vision::matcher::MatchParams,
+}
+
+impl<'e> Reading<'e> {
+    fn of(
+        pair: &'e Pair,
+        fe: &'e vision::front_end::FrontEnd,
+        top: Option<&vision::front_end::table_top::TableTop>,
+    ) -> Reading<'e> {
+        Reading {
+            evidence: vision::matcher::verify::ImageEvidence::of_pair(&pair.calib, fe),
+            lines: marvin::engine::perception::scene_lines(fe),
+            params: marvin::engine::perception::part_params(top.map(|t| t.table.cam_from_table()).as_ref()),
+        }
+    }
+}
+
 /// Each missed object measured at its true pose as the matcher measures its readings (`eval
 /// locate`'s `at_truth`): whether the evidence was there, judged afterwards.
 fn measure_missed(
     missed: &mut [marvin::eval::Missed],
     truth: &SceneTruth,
     models: &[vision::matcher::MatcherModel],
-    (pair, fe, top): (&Pair, &vision::front_end::FrontEnd, Option<&vision::front_end::table_top::TableTop>),
+    reading: &Reading,
 ) {
-    let evidence = vision::matcher::verify::ImageEvidence::of_pair(&pair.calib, fe);
-    let lines = marvin::engine::perception::scene_lines(fe);
-    let params = marvin::engine::perception::part_params(top.map(|t| t.table.cam_from_table()).as_ref());
     for m in missed {
         let Some(model) = models.iter().find(|x| x.name == m.model) else { continue };
-        m.at_truth = Some(measure_at(model, &truth.cam_from_model(m.id), (&lines, &params), &evidence));
+        let at = measure_at(model, &truth.cam_from_model(m.id), (&reading.lines, &reading.params), &reading.evidence);
+        m.at_truth = Some(at);
     }
 }
 

@@ -518,6 +518,10 @@ pub struct FalseReport {
     /// to set beside those of the object it was taken for.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub as_reported: Option<AtTruth>,
+    /// With `--doubt`: whether a turn of the part fits the report as well
+    /// (`vision::matcher::polish::doubt`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub in_doubt: Option<bool>,
 }
 
 /// An eligible object that was not located.
@@ -713,5 +717,6 @@ fn false_report(
         world_m: (cam.world_from_cam * loc.cam_from_model).translation.vector.into(),
         index,
         as_reported: None,
+        in_doubt: None,
     }
 }
