@@ -292,6 +292,29 @@ pub(crate) fn refine_in_views_above(
     keep: &(dyn Fn(usize, usize, &Point3<f64>) -> bool + Sync),
     floor: Option<Floor>,
 ) -> Option<Isometry3<f64>> {
+    refine_in_views_held(model, pose, views, (search, stop), keep, (floor, None))
+}
+
+/// The 3D lines a stereo fit is held to: the scene's lines, and the (model line, scene line)
+/// pairs of the report's support.
+pub(crate) type Anchor<'s> = (&'s [Seg], &'s [(usize, usize)]);
+
+/// Each 3D line of an [`Anchor`] pulls onto its model line this much harder than a sample onto
+/// its edgel, per pixel it lies off: a stereo line is a whole edge matched in both images, a
+/// sample a few pixels of one. Chosen on tuning seeds (docs/TUNING.md, "The stereo polish held
+/// to its 3D lines"): 2, 3, 5 and 10 gave 58, 54, 56 and 57 false reports where 1 gave 62.
+const ANCHOR_WEIGHT: f64 = 3.0;
+
+/// [`refine_in_views_above`] with each scene line of `anchor` pulled onto its model line too
+/// (in pixel-sized units, times [`ANCHOR_WEIGHT`]).
+pub(crate) fn refine_in_views_held(
+    model: &MatcherModel,
+    pose: &Isometry3<f64>,
+    views: &[View],
+    (search, stop): (f64, (f64, f64)),
+    keep: &(dyn Fn(usize, usize, &Point3<f64>) -> bool + Sync),
+    (floor, anchor): (Option<Floor>, Option<Anchor>),
+) -> Option<Isometry3<f64>> {
     use rayon::prelude::*;
     let rows_at = |pose: &Isometry3<f64>| {
         // The views' rows gathered in parallel, then added in the views' order.
@@ -312,6 +335,9 @@ pub(crate) fn refine_in_views_above(
         let enough = rows.count >= 12 * views.len();
         if let (Some((table, level)), Some(v)) = (floor, views.first()) {
             floor_rows(model, pose, (table, level), v.ev.cam.fx, &mut rows);
+        }
+        if let (Some((scene, pairs)), Some(v)) = (anchor, views.first()) {
+            line_rows(model, pose, scene, pairs, ANCHOR_WEIGHT * v.ev.cam.fx, &mut rows);
         }
         enough.then_some(rows)
     };

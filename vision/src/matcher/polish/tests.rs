@@ -177,6 +177,31 @@ fn a_polish_that_loses_leaning_3d_lines_is_kept_where_both_images_bear_it_out() 
     assert!(mm < 0.5 && deg < 0.5, "the left image shows the report: polished {mm:.3} mm, {deg:.3} deg off it");
 }
 
+/// A wedge whose left image shows it a few degrees off (as the looks left it, fitted there),
+/// where the right image and the 3D lines show the truth: the polish on both images alone
+/// moves it little nearer (the left image pulls back), and held to its 3D lines it comes
+/// within a few tenths of a degree of the truth.
+#[test]
+fn a_report_fitted_to_the_left_image_alone_is_held_to_its_3d_lines_onto_the_truth() {
+    let (wedge, left, right, truth, right_from_cam) = wedge_on_table();
+    let start = off_a_few_degrees(&truth);
+    let (lines, p) = (true_lines(&wedge, &truth), MatchParams::default());
+    let (left_edges, _) = model_edges(&wedge, &start, &left);
+    let (right_edges, _) = model_edges(&wedge, &(right_from_cam * truth), &right);
+    let ev = ImageEvidence::new(&left, &left_edges, Vec::new())
+        .with_right(RightImage { ev: ImageEvidence::new(&right, &right_edges, Vec::new()), right_from_cam });
+    let (views, solids) = stereo_views(std::slice::from_ref(&wedge), &ev, &[report(&wedge, start)]).unwrap();
+    let others = others_than(&solids, 0);
+    let alone = polished(&wedge, &start, &others, &views, None);
+    let held = polished_or_held(&wedge, &start, (&lines, &p), &others, &views, None);
+    let ((_, deg_alone), (mm, deg)) = (off_by(&truth, &alone), off_by(&truth, &held));
+    assert!(!sharper_in_both(&wedge, (&start, &alone), &views, &others), "the left image disagrees");
+    assert!(deg < 0.5 && mm < 0.5, "held: {mm:.2} mm, {deg:.2} deg off (alone {deg_alone:.2} deg)");
+    let mut kept = [report(&wedge, start)];
+    polish_in_stereo(std::slice::from_ref(&wedge), (&lines, &p), &ev, &mut kept);
+    assert_eq!(kept[0].cam_from_model, held, "the report takes the held polish");
+}
+
 /// A wedge read resting on its slope where it rests on its bottom (a turn about no axis of
 /// its box), both images showing it as it lies: turned back in stereo; read as it lies, it
 /// stays.
