@@ -225,7 +225,7 @@ fn shares_in_view(model: &MatcherModel, pose: &Isometry3<f64>, views: &[View], o
 /// Why: a part that leans or lies partly hidden shows its tilt poorly in the left image, and
 /// the looks fit it there; where the right image disagrees, the polish on both images alone
 /// slid off onto other edges (and was refused, [`KEEP_SUPPORT`]), leaving the report as the
-/// looks left it. On realistic `widgets.toml` tuning seeds 7511-7710 the four reports 5.4-6.0
+/// looks left it. On realistic `widgets.toml` tuning seeds 7511-7710 the four reports 5.4-6.8
 /// deg off that were traced ran along edgels in the left image for more of their wireframe than
 /// the truth did (0.80-0.96 against 0.63-0.80), in the right image for less (0.55-0.79 against
 /// 0.66-0.86), and along 3D lines mostly for less: a wedge's polish alone moved 8.8 mm and
