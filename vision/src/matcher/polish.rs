@@ -10,7 +10,11 @@
 //! off). Fitting the wireframe to each image on its own, with the edges each camera faces,
 //! matches nothing across the images: each camera's outline is the model's own there.
 //! Samples that other reports' solids or the model's own bulk hide from a camera are left
-//! out, so that a hidden edge is not pulled onto whatever lies in front of it.
+//! out, so that a hidden edge is not pulled onto whatever lies in front of it. Where both
+//! images do not show that pose more sharply than the report, the report is polished again
+//! held to the 3D lines it rests on ([`polished_or_held`]): a leaning part fitted to the left
+//! image a few degrees off is then pulled by the right image and its lines together, not slid
+//! off onto other edges.
 //!
 //! Then the turns ([`turn_in_stereo`]): a report replaced by a turn of itself that both images
 //! show more sharply. Where a turn fits as well, the report stands and is in doubt

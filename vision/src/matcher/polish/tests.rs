@@ -178,9 +178,9 @@ fn a_polish_that_loses_leaning_3d_lines_is_kept_where_both_images_bear_it_out() 
 }
 
 /// A wedge whose left image shows it a few degrees off (as the looks left it, fitted there),
-/// where the right image and the 3D lines show the truth: the polish on both images alone
-/// moves it little nearer (the left image pulls back), and held to its 3D lines it comes
-/// within a few tenths of a degree of the truth.
+/// where the right image and the 3D lines show the truth: the polish on both images alone is
+/// not sharper in both (the left image pulls it one way, the right the other; it slid 8.6 mm
+/// off), and held to its 3D lines it comes within half a millimetre and degree of the truth.
 #[test]
 fn a_report_fitted_to_the_left_image_alone_is_held_to_its_3d_lines_onto_the_truth() {
     let (wedge, left, right, truth, right_from_cam) = wedge_on_table();
